@@ -1,0 +1,92 @@
+"""Maze generation throughput (mazes per second, median of repeats).
+
+Generates complex mazes ``M<seed>_<n>x<n>_C1_l.25_L.25_t.5_T.5`` for consecutive
+seeds, from their parsed specs (parsing excluded), at 10x10 and 20x20.
+
+With ``--reference-python PATH`` the same workload also runs in the reference
+library amaze-benchmarker 1.0, installed in a separate throw-away virtual
+environment (never a dependency of this project), for a side-by-side figure::
+
+    python3 -m venv /tmp/refvenv && /tmp/refvenv/bin/pip install amaze-benchmarker==1.0
+    python benchmarks/bench_generation.py --reference-python /tmp/refvenv/bin/python
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+
+TEMPLATE = "M{seed}_{size}x{size}_C1_l.25_L.25_t.5_T.5"
+
+REFERENCE_SCRIPT = """
+import json, logging, statistics, sys, time
+logging.disable(logging.CRITICAL)
+from amaze import Maze
+size, count, repeats = (int(a) for a in sys.argv[1:4])
+specs = [Maze.BuildData.from_string(f"M{s}_{size}x{size}_C1_l.25_L.25_t.5_T.5") for s in range(count)]
+rates = []
+for _ in range(repeats):
+    start = time.perf_counter()
+    for spec in specs:
+        Maze.generate(spec, warnings=False)
+    rates.append(count / (time.perf_counter() - start))
+print(json.dumps(statistics.median(rates)))
+"""
+
+
+def ours(size: int, count: int, repeats: int) -> float:
+    from amaze.maze import Maze
+    from amaze.spec import MazeSpec
+
+    specs = [MazeSpec.from_string(TEMPLATE.format(seed=s, size=size)) for s in range(count)]
+    Maze.generate(specs[0])  # compile (or load the compiled cache) outside the timing
+    rates = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for spec in specs:
+            Maze.generate(spec)
+        rates.append(count / (time.perf_counter() - start))
+    return statistics.median(rates)
+
+
+def reference(python: str, size: int, count: int, repeats: int) -> float:
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "KGD_AMAZE_NOCACHE": "1"}
+    with tempfile.TemporaryDirectory() as scratch:  # the reference writes ./resources
+        result = subprocess.run(
+            [python, "-c", REFERENCE_SCRIPT, str(size), str(count), str(repeats)],
+            cwd=scratch,
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10, 20])
+    parser.add_argument("--count", type=int, default=1000, help="mazes per repeat")
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--reference-python", metavar="PATH", help="python of a reference venv")
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    print(f"maze generation, {args.count} mazes x {args.repeats} repeats, median")
+    for size in args.sizes:
+        rate = ours(size, args.count, args.repeats)
+        line = f"{size:3d}x{size:<3d} amaze-evo {rate:10.0f} mazes/s"
+        if args.reference_python:
+            ref = reference(args.reference_python, size, min(args.count, 300), args.repeats)
+            line += f"   reference {ref:8.0f} mazes/s   ratio {rate / ref:5.1f}x"
+        print(line, flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

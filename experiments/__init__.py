@@ -1,0 +1,1 @@
+"""Experiments: configurations, the main job (`make demo`) and reports."""

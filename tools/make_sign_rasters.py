@@ -1,0 +1,201 @@
+"""Build ``amaze/data/sign_rasters.npz``: the reference's built-in sign bitmaps.
+
+The reference library (amaze-benchmarker 1.0) draws its built-in sign shapes
+with Qt (non-antialiased ``QPainterPath``, pen width 0.1 of the unit square).
+:mod:`amaze.sign_images` must reproduce those pixels exactly without Qt, so
+this script renders every built-in shape at every size from 3 to 64 with the
+reference itself and stores the result as package data.
+
+Run it with a Python environment that has the *reference* library and PyQt5
+(not this project's environment: both packages are called ``amaze``)::
+
+    python -m venv /tmp/refvenv
+    /tmp/refvenv/bin/pip install amaze-benchmarker==1.0
+    /tmp/refvenv/bin/python tools/make_sign_rasters.py [--out amaze/data/sign_rasters.npz]
+
+It runs headless (``QT_QPA_PLATFORM=offscreen``), disables the reference's file
+cache and works from a temporary directory (importing the reference creates
+``./resources/cache``). It takes about a minute.
+
+What the reference produces, and hence what is stored
+-----------------------------------------------------
+``amaze.misc.resources.np_images(signs, size)`` gives, per sign, four frames
+(directions E, N, W, S) of ``size x size`` gray levels ``k / 255``. The script
+checks (and aborts if any check fails) that:
+
+* the pen gray level of a lightness ``v`` is ``floor(255 * v + 0.5)``
+  (Qt's ``QColor.fromHslF(0, 0, v)`` through 16-bit channels: round-half-up);
+* every pixel's gray level is a function of two numbers only: its *coverage
+  level* (the gray level it has at lightness 1) and the pen gray level. Where
+  the pen is at least one pixel wide (size >= 10) coverage is all or nothing,
+  so the shape's pixel mask does not depend on the lightness; thinner pens
+  (sizes 3..9, for the stroked shapes ``error``, ``forbidden``, ``point``,
+  ``star``, ``warning``) are drawn with a partial alpha (about the pen width in
+  pixels, more where two strokes overlap), and the gray level is then
+  ``lut[coverage, pen gray]``, a table with Qt's premultiplied-alpha rounding
+  that is taken from the reference for every pen gray level.
+
+The ``.npz`` (``numpy.savez_compressed``, no pickled objects) holds:
+
+``sizes``
+    int16, the sizes covered (3..64, contiguous).
+``partial_sizes``
+    int16, the leading sizes for which coverage levels are stored in full.
+``mask_<shape>``
+    uint8, ``np.packbits`` of the concatenated, C-ordered boolean arrays
+    ``coverage > 0`` of shape ``(4, size, size)`` for every size of ``sizes``.
+``coverage_<shape>``
+    uint8, the concatenated coverage levels ``(4, size, size)`` for every size
+    of ``partial_sizes`` (for larger sizes coverage is 255 inside the mask).
+``lut_levels``, ``lut``
+    uint8 ``(L,)`` and ``(L, 256)``: the gray level of a pixel with coverage
+    ``lut_levels[i]`` drawn with pen gray level ``g`` is ``lut[i, g]``.
+``source``
+    str, the versions of the software that drew the bitmaps.
+
+Frames are exactly what ``np_images`` returns: frame ``d`` points in direction
+``d`` with row 0 = north (the reference's final ``np.flipud`` included).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+SIZES = range(3, 65)
+DEFAULT_OUTPUT = Path(__file__).resolve().parent.parent / "amaze" / "data" / "sign_rasters.npz"
+
+
+def pen_gray(value: float) -> int:
+    """Gray level (0..255) of the pen used for a sign of lightness ``value``."""
+    return int(np.floor(255 * value + 0.5))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUTPUT, help="output .npz file")
+    args = parser.parse_args(argv)
+    output = args.out.resolve()
+
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    os.environ["KGD_AMAZE_NOCACHE"] = "1"
+    os.chdir(tempfile.mkdtemp(prefix="sign_rasters_"))
+
+    import PyQt5.QtCore
+    from amaze.misc import resources
+    from PyQt5.QtGui import QColor
+
+    try:
+        from importlib.metadata import version
+
+        reference_version = version("amaze-benchmarker")
+    except Exception:  # pragma: no cover - informative only
+        reference_version = "unknown"
+    if not reference_version.startswith("1.0"):
+        print(
+            f"warning: expected amaze-benchmarker 1.0, found {reference_version}", file=sys.stderr
+        )
+
+    def render(shape: str, value: float, size: int) -> np.ndarray:
+        frames = resources.np_images([resources.Sign(shape, value)], size)[0]
+        out = np.rint(np.asarray(frames, dtype=np.float64) * 255)
+        assert out.shape == (4, size, size) and out.min() >= 0 and out.max() <= 255
+        return out.astype(np.uint8)
+
+    # 1. Lightness -> pen gray level.
+    rng = np.random.default_rng(0)
+    half_points = (np.arange(255) + 0.5) / 255
+    values = np.concatenate(
+        [
+            np.linspace(0.001, 1, 1000),
+            np.arange(1, 256) / 255,
+            half_points,
+            half_points - 1e-6,
+            half_points + 1e-6,
+            rng.uniform(0, 1, 5000),
+        ]
+    )
+    values = values[(values > 0) & (values <= 1)]
+    for v in values:
+        qt_gray = QColor.fromHslF(0, 0, float(v)).red()
+        assert qt_gray == pen_gray(v), (v, qt_gray, pen_gray(v))
+    for v in values[::25]:
+        assert render("arrow", float(v), 5).max() == pen_gray(v), v
+    print(f"pen gray level = floor(255 * v + 0.5): checked on {len(values)} lightness values")
+
+    # 2. Coverage levels (lightness 1) for every shape and size.
+    shapes = sorted(resources.builtins())
+    coverage = {shape: {size: render(shape, 1.0, size) for size in SIZES} for shape in shapes}
+    partial = sorted(
+        size
+        for size in SIZES
+        if any(np.isin(coverage[s][size], (0, 255), invert=True).any() for s in shapes)
+    )
+    assert partial == list(range(SIZES[0], partial[-1] + 1)), partial
+    print(f"partial coverage levels at sizes {partial[0]}..{partial[-1]}")
+
+    # 3. Gray level = lut[coverage, pen gray]: every pen gray level at the small
+    #    sizes (and a bit beyond), sampled values at every size.
+    table: dict[tuple[int, int], int] = {}
+
+    def check(shape: str, value: float, size: int) -> None:
+        gray = pen_gray(value)
+        image = render(shape, value, size)
+        base = coverage[shape][size]
+        for level in np.unique(base):
+            seen = np.unique(image[base == level])
+            assert len(seen) == 1, (shape, value, size, level, seen)
+            known = table.setdefault((int(level), gray), int(seen[0]))
+            assert known == seen[0], (shape, value, size, level, known, seen)
+
+    for shape in shapes:
+        for size in range(SIZES[0], partial[-1] + 3):
+            for gray in range(1, 256):
+                check(shape, gray / 255, size)
+        for size in SIZES:
+            for value in (0.001, 0.003, 0.01, 0.1, 0.25, 0.3333, 0.5, 0.75, 0.999):
+                check(shape, value, size)
+        for value in rng.uniform(0, 1, 60):
+            check(shape, float(value), int(rng.choice(SIZES)))
+    levels = sorted({level for level, _ in table})
+    lut = np.zeros((len(levels), 256), dtype=np.uint8)
+    for (level, gray), out in table.items():
+        lut[levels.index(level), gray] = out
+    full = lut[levels.index(255)]
+    assert (full == np.arange(256)).all(), "fully covered pixels must have the pen gray level"
+    assert (lut[levels.index(0)] == 0).all()
+    for level in levels:
+        grays = {g for lv, g in table if lv == level}
+        assert grays >= set(range(1, 256)), f"pen gray levels missing for coverage {level}"
+    print(f"gray level = lut[coverage, pen gray] for coverage levels {levels}")
+
+    # 4. Save.
+    arrays: dict[str, np.ndarray] = {
+        "sizes": np.asarray(list(SIZES), dtype=np.int16),
+        "partial_sizes": np.asarray(partial, dtype=np.int16),
+        "lut_levels": np.asarray(levels, dtype=np.uint8),
+        "lut": lut,
+        "source": np.asarray(
+            f"amaze-benchmarker {reference_version}, PyQt5 {PyQt5.QtCore.PYQT_VERSION_STR},"
+            f" Qt {PyQt5.QtCore.QT_VERSION_STR}: amaze.misc.resources.np_images"
+        ),
+    }
+    for shape in shapes:
+        masks = np.concatenate([(coverage[shape][size] > 0).ravel() for size in SIZES])
+        arrays[f"mask_{shape}"] = np.packbits(masks)
+        arrays[f"coverage_{shape}"] = np.concatenate(
+            [coverage[shape][size].ravel() for size in partial]
+        )
+    output.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(output, **arrays)
+    print(f"wrote {output} ({output.stat().st_size} bytes)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

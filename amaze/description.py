@@ -61,7 +61,8 @@ def summary(maze: Maze) -> str:
         f"  path {stats['path']} cells, {stats['intersections']} intersections",
         f"  signs: {stats['clues']} clues, {stats['lures']} lures, {stats['traps']} traps",
         f"  class: {maze.maze_class.label}",
-        f"  surprisingness {metrics.surprisingness:.4f} (all cells {metrics.surprisingness_all:.4f})",
+        f"  surprisingness {metrics.surprisingness:.4f}"
+        f" (all cells {metrics.surprisingness_all:.4f})",
         f"  deceptiveness {metrics.deceptiveness:.4f}"
         f" (rotation-invariant, paper definition: {metrics.invariant_deceptiveness:.4f})",
     ]
@@ -111,6 +112,7 @@ def stats_rows(mazes: Iterable) -> Iterator[dict[str, object]]:
 
 def format_table(rows: list[dict[str, object]]) -> str:
     """The rows of :func:`stats_rows` as an aligned text table."""
+
     def cell(value: object) -> str:
         return f"{value:.4f}" if isinstance(value, float) else str(value)
 

@@ -227,7 +227,9 @@ def generate(spec: MazeSpec) -> Maze:
         n_lures = round(spec.p_lure * len(candidates))
         lure_types = _type_indices(rng, len(spec.lure), n_lures)
         # list(set) of small non-negative ints is ascending in CPython, as in the reference.
-        for sign_index, index in zip(lure_types, rng.sample(list(candidates), n_lures)):
+        for sign_index, index in zip(
+            lure_types, rng.sample(list(candidates), n_lures), strict=True
+        ):
             truth = direction_between(solution[index], solution[index + 1])
             direction = rng.choice([d for d in ordered_dirs if d != truth])
             lure_entries.append((sign_index, index, direction, truth, False))

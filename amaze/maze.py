@@ -41,7 +41,7 @@ class MazeClass(IntEnum):
 
     @property
     def label(self) -> str:
-        """Lower-case name: ``trivial``, ``simple``, ``lures``, ``traps``, ``complex``, ``invalid``."""
+        """Lower-case name: trivial, simple, lures, traps, complex or invalid."""
         return self.name.lower()
 
 
@@ -210,7 +210,7 @@ class Maze:
         n = self.n_intersections
         if n == 0:
             return MazeClass.TRIVIAL
-        c, l, t = len(self.clues), len(self.lures), len(self.traps)  # noqa: E741
+        c, l, t = len(self.clues), len(self.lures), len(self.traps)
         if c == n and t == 0:
             return MazeClass.SIMPLE if l == 0 else MazeClass.LURES
         if c < n and t > 0 and c + t == n:

@@ -15,7 +15,7 @@ rounding, including its deceptiveness, whose quirks are documented in
 definition, which does not depend on the orientation of the maze.
 
 Implementation: every input vector is packed into one small integer
-(``wall code * SIGN_RADIX + sign code``, where the wall code writes the 4 wall
+(``wall code * radix + sign code``, where the wall code writes the 4 wall
 slots in base 3 and the sign code numbers the (direction, lightness) pairs of
 the maze) and the frequencies are counted with :func:`numpy.bincount`, so the
 work per maze is a fixed number of array operations whatever its size.
@@ -37,8 +37,8 @@ if TYPE_CHECKING:
     from amaze.spec import MazeSpec
 
 __all__ = [
-    "MazeMetrics",
     "SURPRISINGNESS_VARIANTS",
+    "MazeMetrics",
     "compute_metrics",
     "deceptiveness",
     "inseparability",
@@ -76,18 +76,23 @@ class _Encoded:
     ``(w*h, 4)`` bool, True on open sides), ``path`` (flat indices of the
     solution cells), ``exits`` (direction of the move out of each solution cell,
     -1 at the goal), ``path_keys`` (the inputs along the optimal trajectory,
-    arrival side marked) and ``path_wall_codes`` (their wall part).
+    arrival side marked), ``path_wall_codes`` (their wall part), ``sign_direction``
+    (where the sign of each solution cell points, -1 without a sign) and the
+    frequencies ``state_counts`` (of each path key) and ``config_counts`` (of
+    each path wall code).
     """
 
     __slots__ = (
-        "radix",
         "base",
+        "config_counts",
+        "exits",
         "opened",
         "path",
-        "exits",
         "path_keys",
         "path_wall_codes",
+        "radix",
         "sign_direction",
+        "state_counts",
     )
 
     def __init__(self, maze: Maze) -> None:
@@ -129,6 +134,8 @@ class _Encoded:
         self.path_wall_codes = wall_code[path] + arrival
         self.path_keys = self.base[path] + arrival * radix
         self.sign_direction = direction[path]
+        self.state_counts = np.bincount(self.path_keys, minlength=self.n_keys)
+        self.config_counts = np.bincount(self.path_wall_codes, minlength=_N_WALL_CODES)
 
     @property
     def n_keys(self) -> int:
@@ -150,8 +157,8 @@ def _entropy(counts: np.ndarray, total: int) -> float:
 
 
 def _surprisingness_path(enc: _Encoded) -> tuple[float, int]:
-    keys = enc.path_keys
-    return _entropy(np.bincount(keys), len(keys)), len(keys)
+    length = len(enc.path_keys)
+    return _entropy(enc.state_counts, length), length
 
 
 def _surprisingness_all(enc: _Encoded, unicursive: bool) -> tuple[float, int]:
@@ -174,13 +181,9 @@ def _conditional_terms(enc: _Encoded, costly: np.ndarray) -> tuple[np.ndarray, n
     ``c`` is the wall part of ``s`` (walls and arrival mark). Returns the terms
     and, for each, whether ``c`` is in the reference's intersection class.
     """
-    keys = enc.path_keys
-    n_keys = enc.n_keys
-    states = np.flatnonzero(np.bincount(keys[costly], minlength=n_keys))
-    state_counts = np.bincount(keys, minlength=n_keys)[states]
+    states = np.flatnonzero(np.bincount(enc.path_keys[costly], minlength=enc.n_keys))
     wall_codes = states // enc.radix
-    config_counts = np.bincount(enc.path_wall_codes, minlength=_N_WALL_CODES)[wall_codes]
-    p = state_counts / config_counts
+    p = enc.state_counts[states] / enc.config_counts[wall_codes]
     return -p * np.log2(p), _INTERSECTION[wall_codes]
 
 
@@ -193,11 +196,9 @@ def _deceptiveness(enc: _Encoded) -> float:
     entropy_intersections = float(terms[intersection].sum())
     entropy_corridors = float(terms[~intersection].sum())
     length = len(enc.path_keys)
-    n_intersections = int(np.count_nonzero(_INTERSECTION[enc.path_wall_codes]))
+    n_intersections = int(enc.config_counts[_INTERSECTION].sum())
     n_corridors = length - n_intersections
-    return (
-        n_intersections * entropy_corridors + n_corridors * entropy_intersections
-    ) / length
+    return (n_intersections * entropy_corridors + n_corridors * entropy_intersections) / length
 
 
 def _invariant_deceptiveness(enc: _Encoded) -> float:
@@ -395,4 +396,3 @@ def compute_metrics(maze: Maze) -> MazeMetrics:
         n_inputs_path=n_path,
         n_inputs_all=n_all,
     )
-

@@ -41,13 +41,15 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from amaze.maze import Maze
-from amaze.signs import Sign, SignKind
+from amaze.signs import Sign, SignKind, custom_sign_path
 
 Color = tuple[int, int, int]
 
 THEMES: tuple[str, ...] = ("light", "dark")
 MIN_CELL_SIZE = 4
 MAX_CELL_SIZE = 512
+#: Largest picture side (px), to refuse accidental gigapixel renderings.
+MAX_SIDE = 16384
 #: Automatic cell sizes aim at pictures of about this many pixels on their long side.
 TARGET_SIDE = 720
 #: Automatic cell sizes stay in this range (px).
@@ -257,7 +259,13 @@ class MazeLayout:
         margin = options.margin if options.margin is not None else max(2 * wall, round(cell / 4))
         if margin < wall:
             raise ValueError(f"margin={margin} must be at least the wall width {wall}")
-        return cls(maze.width, maze.height, cell, wall, margin)
+        layout = cls(maze.width, maze.height, cell, wall, margin)
+        if max(layout.size) > MAX_SIDE:
+            raise ValueError(
+                f"cell_size={cell} makes a {layout.size[0]}x{layout.size[1]} px picture"
+                f" (at most {MAX_SIDE} px a side)"
+            )
+        return layout
 
     @property
     def size(self) -> tuple[int, int]:
@@ -455,13 +463,25 @@ def _draw_signs(
             continue
         draw.rectangle((x0, y0, x1, y1), fill=SIGN_TILE)
         if size >= 3:
-            tile = _sign_tile(placed.sign, int(placed.direction), size)
+            tile = _sign_tile(placed.sign, int(placed.direction), size, _image_version(placed.sign))
             image.paste(tile.convert("RGB"), (x0, y0))
 
 
+def _image_version(sign: Sign) -> int:
+    """The modification time of a custom sign's file (0 for built-ins), so edits show."""
+    path = custom_sign_path(sign.shape)
+    try:
+        return path.stat().st_mtime_ns if path is not None else 0
+    except OSError:
+        return -1
+
+
 @lru_cache(maxsize=256)
-def _sign_tile(sign: Sign, direction: int, size: int) -> Image.Image:
-    """The gray ``size`` x ``size`` picture of ``sign`` pointing ``direction`` (antialiased)."""
+def _sign_tile(sign: Sign, direction: int, size: int, version: int) -> Image.Image:
+    """The gray ``size`` x ``size`` picture of ``sign`` pointing ``direction`` (antialiased).
+
+    ``version`` only keys the cache (see :func:`_image_version`).
+    """
     from amaze.sign_images import sign_frames
 
     factor = _SIGN_SUPERSAMPLING

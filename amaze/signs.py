@@ -21,7 +21,7 @@ import math
 import os
 import re
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 
 from amaze.errors import SignError
@@ -45,7 +45,7 @@ _SEPARATOR = "-"
 _CUSTOM_NAME = re.compile(r"[a-z][a-z0-9]*")
 
 
-class SignKind(str, Enum):
+class SignKind(StrEnum):
     """What a placed sign tells the agent."""
 
     CLUE = "clue"
@@ -91,7 +91,9 @@ class _ShapeRegistry:
                     " followed by letters or digits (it is used in maze strings)"
                 )
             if name in BUILTIN_SHAPES:
-                raise SignError(f"custom sign file '{file}' would shadow the built-in shape '{name}'")
+                raise SignError(
+                    f"custom sign file '{file}' would shadow the built-in shape '{name}'"
+                )
             self._custom[name] = file.resolve()
             names.append(name)
         return names
@@ -187,7 +189,9 @@ class Sign:
             try:
                 value = _parse_float(tokens[1], spec)
             except _NotANumber:
-                raise SignError(f"sign '{spec}': '{tokens[1]}' is not a valid lightness value") from None
+                raise SignError(
+                    f"sign '{spec}': '{tokens[1]}' is not a valid lightness value"
+                ) from None
             return cls(tokens[0], value)
         raise SignError(f"malformed sign '{spec}': expected VALUE, SHAPE or SHAPE-VALUE")
 

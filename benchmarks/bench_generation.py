@@ -30,7 +30,8 @@ import json, logging, statistics, sys, time
 logging.disable(logging.CRITICAL)
 from amaze import Maze
 size, count, repeats = (int(a) for a in sys.argv[1:4])
-specs = [Maze.BuildData.from_string(f"M{s}_{size}x{size}_C1_l.25_L.25_t.5_T.5") for s in range(count)]
+template = "M{}_{}x{}_C1_l.25_L.25_t.5_T.5"
+specs = [Maze.BuildData.from_string(template.format(s, size, size)) for s in range(count)]
 rates = []
 for _ in range(repeats):
     start = time.perf_counter()

@@ -58,9 +58,9 @@ def run(out: Path) -> Path:
 
     print(f"\n{len(mazes)} mazes in {time.perf_counter() - started:.1f} s")
     print(f"outputs in {out.resolve()}/:")
-    print(f"  classes.png          overview: three mazes of each class (rows)")
-    print(f"  mazes/*.png          every maze, light and dark themes")
-    print(f"  mazes.csv            the table above")
+    print("  classes.png          overview: three mazes of each class (rows)")
+    print("  mazes/*.png          every maze, light and dark themes")
+    print("  mazes.csv            the table above")
     return table
 
 

@@ -15,7 +15,7 @@ Run it with a Python environment that has the *reference* library and PyQt5
 
 It runs headless (``QT_QPA_PLATFORM=offscreen``), disables the reference's file
 cache and works from a temporary directory (importing the reference creates
-``./resources/cache``). It takes about a minute.
+``./resources/cache``). It takes well under a minute.
 
 What the reference produces, and hence what is stored
 -----------------------------------------------------

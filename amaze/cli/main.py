@@ -148,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.run(args)
     except BrokenPipeError:
         # The reader went away (e.g. `amaze inspect ... | head`): stop quietly.
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115
+        sys.stdout = open(os.devnull, "w")
         return 0
     except (UsageError, AmazeError, OSError) as error:
         message = str(error).splitlines()[0] if str(error) else type(error).__name__

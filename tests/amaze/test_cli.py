@@ -38,7 +38,9 @@ def test_inspect_json_matches_reference(capsys, fixture):
     assert record["start"] == fixture["start"] and record["end"] == fixture["end"]
     assert record["solution"] == fixture["solution"]
     hex_digits = "".join(
-        f"{sum(bit << k for k, bit in enumerate(cell)):x}" for column in record["walls"] for cell in column
+        f"{sum(bit << k for k, bit in enumerate(cell)):x}"
+        for column in record["walls"]
+        for cell in column
     )
     assert hex_digits == fixture["walls_hex"]
     assert record["intersections"] == fixture["intersections"]

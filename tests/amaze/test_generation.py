@@ -93,7 +93,9 @@ def test_canonical_string_regenerates_the_same_maze(fixture):
     assert generate(maze.to_string()) == maze
 
 
-@pytest.mark.parametrize("fixture", REFERENCE["mazes"], ids=[m["input"] for m in REFERENCE["mazes"]])
+@pytest.mark.parametrize(
+    "fixture", REFERENCE["mazes"], ids=[m["input"] for m in REFERENCE["mazes"]]
+)
 def test_all_rotations_match_reference(fixture):
     base = generate(fixture["input"])
     rotations = base.all_rotations()

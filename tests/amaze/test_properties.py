@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections import Counter, deque
+from itertools import pairwise
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -85,7 +86,7 @@ def test_generated_mazes_are_perfect_and_solvable(spec):
     # The solution is a walkable simple path from start to end.
     assert maze.solution[0] == maze.start and maze.solution[-1] == maze.end
     assert len(set(maze.solution)) == maze.path_length
-    for a, b in zip(maze.solution, maze.solution[1:]):
+    for a, b in pairwise(maze.solution):
         d = {(1, 0): 0, (0, 1): 1, (-1, 0): 2, (0, -1): 3}[(b[0] - a[0], b[1] - a[1])]
         assert not walls[a][d]
     # Start and end are opposite corners.
@@ -133,7 +134,7 @@ def test_sign_counts_are_within_bounds(spec):
     assert all(p.cell not in (maze.end,) for p in maze.signs)
 
 
-grammar_alphabet = st.sampled_from(list("MURCLTlt0123456789x._-SNWE ") + ["point", "arrow", "__"])
+grammar_alphabet = st.sampled_from([*"MURCLTlt0123456789x._-SNWE ", "point", "arrow", "__"])
 
 
 @settings(max_examples=300, deadline=None)

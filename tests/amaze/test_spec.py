@@ -71,7 +71,8 @@ def test_sign_canonical_printing(sign, text):
 
 
 @pytest.mark.parametrize(
-    "spec", ["", "foo", "1e-1", "arrow-foo", "foo-bar-baz", "arrow-0", "arrow-10", "arrow--10", "0", "nan"]
+    "spec",
+    ["", "foo", "1e-1", "arrow-foo", "foo-bar-baz", "arrow-0", "arrow-10", "arrow--10", "0", "nan"],
 )
 def test_bad_sign_specs(spec):
     with pytest.raises(SignError):

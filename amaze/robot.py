@@ -1,0 +1,115 @@
+"""Robots: what an agent perceives and how it acts (reference §4.1).
+
+A robot string is ``IO[V]`` or a shorthand ``S[V]``:
+
+* ``DD``: discrete inputs (the 8-float vector), discrete actions (E, N, W, S);
+* ``CD`` or ``H``: *hybrid*, a ``V x V`` image of the cell in, discrete actions out;
+* ``CC`` or ``C``: continuous, a ``V x V`` image window in, an acceleration out.
+
+``V`` (vision) must be odd and at least 5 when given for image inputs (default
+15); it is accepted and ignored for discrete inputs (``D11`` is ``DD``), as in the
+reference. Discrete inputs with continuous outputs (``DC``) are not allowed.
+Canonical strings: ``DD``, ``CD15``, ``CC11``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+
+from amaze.errors import AmazeError
+
+DEFAULT_VISION = 15
+MIN_VISION = 5
+
+#: Physics constants of continuous control (reference §4.1).
+RADIUS = 0.1
+INERTIAL_LOSS = 0.5
+ACCELERATION_SCALE = 0.5
+
+
+class RobotStringError(AmazeError):
+    """A robot string is malformed or describes an unsupported robot."""
+
+
+class IOType(StrEnum):
+    """Whether an input or output side is discrete or continuous."""
+
+    DISCRETE = "D"
+    CONTINUOUS = "C"
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A robot's input and output types and its vision (image side, odd, or None)."""
+
+    inputs: IOType = IOType.DISCRETE
+    outputs: IOType = IOType.DISCRETE
+    vision: int | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "inputs", IOType(self.inputs))
+        object.__setattr__(self, "outputs", IOType(self.outputs))
+        if self.inputs is IOType.DISCRETE:
+            if self.outputs is IOType.CONTINUOUS:
+                raise RobotStringError(
+                    "robot 'DC': discrete inputs with continuous outputs are not supported"
+                )
+            object.__setattr__(self, "vision", None)
+            return
+        vision = DEFAULT_VISION if self.vision is None else self.vision
+        if not isinstance(vision, int) or isinstance(vision, bool):
+            raise RobotStringError(f"robot vision {vision!r} is not an integer")
+        if vision % 2 != 1 or vision < MIN_VISION:
+            raise RobotStringError(f"robot vision {vision} must be odd and at least {MIN_VISION}")
+        object.__setattr__(self, "vision", vision)
+
+    @classmethod
+    def from_string(cls, text: str) -> Robot:
+        """Parse ``DD``, ``H15``, ``CD15``, ``C11``, ``CC``..."""
+        if not isinstance(text, str) or not text:
+            raise RobotStringError(f"robot string {text!r} is empty or not a string")
+        shorthands = {"D": "DD", "H": "CD", "C": "CC"}
+        if text[0] not in shorthands:
+            raise RobotStringError(f"robot string '{text}' must start with D, H or C")
+        if len(text) > 1 and text[1].isalpha():
+            if text[0] == "H" or text[1] not in "DC":
+                raise RobotStringError(f"robot string '{text}': unknown output type '{text[1]}'")
+            io, rest = text[:2], text[2:]
+        else:
+            io, rest = shorthands[text[0]], text[1:]
+        if rest and not rest.isdigit():
+            raise RobotStringError(f"robot string '{text}': vision '{rest}' is not a number")
+        if io == "DC":
+            raise RobotStringError(
+                f"robot string '{text}': discrete inputs with continuous outputs are not supported"
+            )
+        vision = int(rest) if rest and io[0] == "C" else None
+        return cls(IOType(io[0]), IOType(io[1]), vision)
+
+    def to_string(self) -> str:
+        text = f"{self.inputs.value}{self.outputs.value}"
+        return text if self.vision is None else f"{text}{self.vision}"
+
+    def __str__(self) -> str:
+        return self.to_string()
+
+    @property
+    def discrete_inputs(self) -> bool:
+        return self.inputs is IOType.DISCRETE
+
+    @property
+    def discrete_outputs(self) -> bool:
+        return self.outputs is IOType.DISCRETE
+
+    @property
+    def kind(self) -> str:
+        """``discrete`` (DD), ``hybrid`` (CD) or ``continuous`` (CC)."""
+        if self.discrete_inputs:
+            return "discrete"
+        return "hybrid" if self.discrete_outputs else "continuous"
+
+
+def as_robot(robot: Robot | str) -> Robot:
+    """A :class:`Robot` from a robot or its string."""
+    return robot if isinstance(robot, Robot) else Robot.from_string(robot)

@@ -99,10 +99,21 @@ _THEME_BASE = {
         "text": _hex("#dddddd"),
     },
 }
+
 # Marker colours. The standard set follows the reference viewer (blue path, red
 # start, green goal); the colour-blind-safe set uses the seaborn "colorblind"
 # (Okabe-Ito based) colours the reference switches to: teal path, orange start,
-# blue goal, and sky blue / yellow / pink for clue / lure / trap outlines.
+# blue goal, and sky blue / yellow / pink for clue / lure / trap outlines. It is
+# the same on both themes.
+_COLORBLIND_ACCENTS = {
+    "path": "#029e73",
+    "start": "#de8f05",
+    "goal": "#0173b2",
+    "clue": "#56b4e9",
+    "lure": "#ece133",
+    "trap": "#cc78bc",
+}
+
 _MARKERS = {
     ("light", False): {
         "path": "#1f6fd1",
@@ -120,22 +131,8 @@ _MARKERS = {
         "lure": "#ffb340",
         "trap": "#e5484d",
     },
-    ("light", True): {
-        "path": "#029e73",
-        "start": "#de8f05",
-        "goal": "#0173b2",
-        "clue": "#56b4e9",
-        "lure": "#ece133",
-        "trap": "#cc78bc",
-    },
-    ("dark", True): {
-        "path": "#029e73",
-        "start": "#de8f05",
-        "goal": "#0173b2",
-        "clue": "#56b4e9",
-        "lure": "#ece133",
-        "trap": "#cc78bc",
-    },
+    ("light", True): _COLORBLIND_ACCENTS,
+    ("dark", True): _COLORBLIND_ACCENTS,
 }
 
 

@@ -59,6 +59,12 @@ def test_token_order_does_not_matter(spec, rng):
     assert MazeSpec.from_string(" ".join(tokens)) == spec
 
 
+def generate_quietly(spec: MazeSpec) -> Maze:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MazeStringWarning)
+        return Maze.generate(spec)
+
+
 def reachable(maze: Maze, origin) -> set:
     seen, queue = {origin}, deque([origin])
     while queue:
@@ -73,9 +79,7 @@ def reachable(maze: Maze, origin) -> set:
 @FAST
 @given(specs(max_size=15))
 def test_generated_mazes_are_perfect_and_solvable(spec):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", MazeStringWarning)
-        maze = Maze.generate(spec)
+    maze = generate_quietly(spec)
     w, h, walls = maze.width, maze.height, maze.walls
     assert {(w, h), (h, w)} >= {(spec.width, spec.height)}
     # Borders are walled and both sides of every inner wall agree.
@@ -106,9 +110,7 @@ def within(count: int, expected: float) -> bool:
 @FAST
 @given(specs(max_size=20))
 def test_sign_counts_are_within_bounds(spec):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", MazeStringWarning)
-        maze = Maze.generate(spec)
+    maze = generate_quietly(spec)
     n = maze.n_intersections
     if spec.unicursive:
         assert n == 0 and not maze.clues and not maze.traps

@@ -7,7 +7,8 @@ Quick start::
     maze.stats(), maze.maze_class.label
 
 The same string gives the same maze as amaze-benchmarker 1.0 (walls, solution
-and placed signs). See ``amaze.spec`` for the string grammar.
+and placed signs). See ``amaze.spec`` for the string grammar. Importing the
+package registers the gymnasium environment ``AMaze-v0`` (``amaze.gym_env``).
 """
 
 from amaze.directions import Direction
@@ -17,6 +18,15 @@ from amaze.signs import Sign, SignKind, register_custom_signs
 from amaze.spec import MazeSpec, StartLocation
 
 __version__ = "0.1.0"
+
+
+def _register_gymnasium_environments() -> None:
+    from amaze.gym_env import register_environments
+
+    register_environments()
+
+
+_register_gymnasium_environments()
 
 __all__ = [
     "AmazeError",

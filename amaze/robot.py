@@ -85,7 +85,10 @@ class Robot:
                 f"robot string '{text}': discrete inputs with continuous outputs are not supported"
             )
         vision = int(rest) if rest and io[0] == "C" else None
-        return cls(IOType(io[0]), IOType(io[1]), vision)
+        try:
+            return cls(IOType(io[0]), IOType(io[1]), vision)
+        except RobotStringError as error:
+            raise RobotStringError(f"robot string '{text}': {error}") from None
 
     def to_string(self) -> str:
         text = f"{self.inputs.value}{self.outputs.value}"

@@ -21,6 +21,13 @@ class SignError(AmazeError):
     """A sign specification (shape, lightness or custom image) is invalid."""
 
 
+class EpisodeEndedError(AmazeError):
+    """An agent was stepped after its episode reached the goal or the deadline.
+
+    The reference library added the finish bonus a second time; we refuse.
+    """
+
+
 class MazeStringWarning(UserWarning):
     """A token of a maze string was accepted but has no effect on the maze.
 

@@ -118,7 +118,7 @@ class MazeEnv(gymnasium.Env):
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         reward = self.simulation.step(action)
         terminated = self.simulation.success()
-        truncated = not terminated and self.simulation.failure()
+        truncated = self.simulation.failure()  # both can hold, as in the reference
         if self.render_mode == "human":
             self.render()
         return self._observation(), reward, terminated, truncated, self._info()

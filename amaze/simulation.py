@@ -21,15 +21,11 @@ from typing import Any
 import numpy as np
 
 from amaze.directions import OFFSETS, direction_between
-from amaze.errors import AmazeError
+from amaze.errors import AmazeError, EpisodeEndedError
 from amaze.maze import Maze
 from amaze.observations import cell_image, continuous_observation, discrete_observation
 from amaze.rewards import DEFAULT_DEADLINE_FACTOR, RewardScheme, paper_reward, pretty_reward
 from amaze.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
-
-
-class EpisodeEndedError(AmazeError):
-    """``step`` was called after the episode reached the goal or the deadline."""
 
 
 @dataclass

@@ -79,6 +79,13 @@ def _wall(walls, off, h, i, j, d):
 
 
 @numba.njit(cache=True, inline="always")
+def _global_cell(k, ist, mint):
+    """Index of agent ``k``'s cell in the concatenated per-cell tables."""
+    m = ist[k, _MAZE]
+    return mint[m, _OFF] + ist[k, _CI] * mint[m, _H] + ist[k, _CJ]
+
+
+@numba.njit(cache=True, inline="always")
 def _arrival_side(ci, cj, pi, pj):
     """Side (0..3) of the cell leading back to the previous cell, -1 if none."""
     dx = pi - ci
@@ -171,11 +178,8 @@ def _record_end(k, success, ist, fst, ep_ret, ep_int):
 
 @numba.njit(cache=True, inline="always")
 def _observe_discrete(k, out, ist, mint, dobs):
-    m = ist[k, _MAZE]
-    ci = ist[k, _CI]
-    cj = ist[k, _CJ]
-    g = mint[m, _OFF] + ci * mint[m, _H] + cj
-    a = _arrival_side(ci, cj, ist[k, _PI], ist[k, _PJ]) + 1
+    g = _global_cell(k, ist, mint)
+    a = _arrival_side(ist[k, _CI], ist[k, _CJ], ist[k, _PI], ist[k, _PJ]) + 1
     for s in range(8):
         out[k, s] = dobs[g, a, s]
 
@@ -195,10 +199,9 @@ def _marker(side, v):
 
 @numba.njit(cache=True, inline="always")
 def _observe_tile(k, out, ist, mint, tiles):
-    m = ist[k, _MAZE]
+    g = _global_cell(k, ist, mint)
     ci = ist[k, _CI]
     cj = ist[k, _CJ]
-    g = mint[m, _OFF] + ci * mint[m, _H] + cj
     v = out.shape[1]
     for r in range(v):
         for c in range(v):

@@ -22,21 +22,13 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from amaze.maze import Maze
+from amaze.maze import Maze, as_maze
 from amaze.robot import Robot, as_robot
 from amaze.simulation import Simulation
 from amaze.spec import MazeSpec
 
 ENV_ID = "AMaze-v0"
 DEFAULT_MAZE = "M0_10x10_C1"
-
-
-def _as_maze(maze: Maze | MazeSpec | str) -> Maze:
-    if isinstance(maze, Maze):
-        return maze
-    if isinstance(maze, MazeSpec):
-        return Maze.generate(maze)
-    return Maze.from_string(maze)
 
 
 def observation_space(robot: Robot) -> spaces.Box:
@@ -75,10 +67,11 @@ class MazeEnv(gymnasium.Env):
             raise ValueError(f"render_mode {render_mode!r} is not one of {modes}")
         self.robot = as_robot(robot)
         self.render_mode = render_mode
-        self.simulation = Simulation(_as_maze(maze), self.robot, deadline_factor=deadline_factor)
+        self.simulation = Simulation(as_maze(maze), self.robot, deadline_factor=deadline_factor)
         self.observation_space = observation_space(self.robot)
         self.action_space = action_space(self.robot)
         self._viewer = None
+        self._background = None  # (maze, its rendered picture, its layout)
 
     @property
     def maze(self) -> Maze:
@@ -110,7 +103,7 @@ class MazeEnv(gymnasium.Env):
         """Start an episode; ``options={"maze": STRING}`` switches the maze."""
         super().reset(seed=seed)
         maze = (options or {}).get("maze")
-        self.simulation.reset(_as_maze(maze) if maze is not None else None)
+        self.simulation.reset(as_maze(maze) if maze is not None else None)
         if self.render_mode == "human":
             self.render()
         return self._observation(), self._info()
@@ -138,11 +131,14 @@ class MazeEnv(gymnasium.Env):
         """The maze picture with the agent drawn at its position."""
         from PIL import ImageDraw
 
-        from amaze.render import MazeLayout, RenderOptions, render_maze
+        if self._background is None or self._background[0] is not self.maze:
+            from amaze.render import MazeLayout, RenderOptions, render_maze
 
-        options = RenderOptions(cell_size=24)
-        image = render_maze(self.maze, options)
-        layout = MazeLayout.of(self.maze, options)
+            options = RenderOptions(cell_size=24)
+            layout = MazeLayout.of(self.maze, options)
+            self._background = (self.maze, render_maze(self.maze, options), layout)
+        _, background, layout = self._background
+        image = background.copy()
         x, y = self.simulation.position
         px = layout.margin + x * layout.cell_size
         py = layout.margin + (self.maze.height - y) * layout.cell_size
@@ -172,6 +168,7 @@ class MazeEnv(gymnasium.Env):
 
             plt.close(self._viewer[0])
             self._viewer = None
+        self._background = None  # (maze, its rendered picture, its layout)
 
 
 def register_environments() -> None:

@@ -189,6 +189,14 @@ class Maze:
         return self.clues + self.lures + self.traps
 
     @cached_property
+    def _signs_by_cell(self) -> dict[Cell, PlacedSign]:
+        return {placed.cell: placed for placed in self.signs}
+
+    def sign_at(self, cell: Cell) -> PlacedSign | None:
+        """The sign placed in ``cell``, or ``None`` (a cell holds at most one)."""
+        return self._signs_by_cell.get(cell)
+
+    @cached_property
     def cell_signs(self) -> CellSigns:
         """Per-cell arrays of sign value, direction and kind."""
         return CellSigns(self)
@@ -216,3 +224,14 @@ class Maze:
         if c < n and t > 0 and c + t == n:
             return MazeClass.TRAPS if l == 0 else MazeClass.COMPLEX
         return MazeClass.INVALID
+
+
+def as_maze(maze: Maze | MazeSpec | str) -> Maze:
+    """A :class:`Maze` from a maze, its spec or its string."""
+    if isinstance(maze, Maze):
+        return maze
+    if isinstance(maze, MazeSpec):
+        return Maze.generate(maze)
+    if isinstance(maze, str):
+        return Maze.from_string(maze)
+    raise ValueError(f"expected a MazeSpec, a Maze or a maze string, not {maze!r}")

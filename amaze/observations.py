@@ -54,7 +54,7 @@ def cell_image(
     image[0, 0] = max(north, west)
     image[-1, -1] = max(south, east)
     image[-1, 0] = max(south, west)
-    sign = _placed_sign(maze, cell)
+    sign = maze.sign_at((i, j))
     if sign is not None:
         image[1:-1, 1:-1] = sign_frames(sign.sign, vision - 2)[int(sign.direction)]
     if arrival is not None:
@@ -84,10 +84,3 @@ def continuous_observation(
                 cols = slice((di + 1) * v, (di + 2) * v)
                 buffer[rows, cols] = cell_image(maze, (ci, cj), v, own)
     return buffer[v - dpy : 2 * v - dpy, v + dpx : 2 * v + dpx].copy()
-
-
-def _placed_sign(maze: Maze, cell: tuple[int, int]):
-    for placed in maze.signs:
-        if placed.cell == cell:
-            return placed
-    return None

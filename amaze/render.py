@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from amaze.maze import Maze
+from amaze.maze import Maze, as_maze
 from amaze.signs import Sign, SignKind, custom_sign_path
 
 Color = tuple[int, int, int]
@@ -352,7 +352,7 @@ def render_maze(
     Keyword arguments override fields of ``options`` (``render_maze(m, theme="dark")``).
     Bad options raise ValueError naming the value.
     """
-    maze = _as_maze(maze)
+    maze = as_maze(maze)
     options = _resolve_options(options, overrides)
     layout = MazeLayout.of(maze, options)
     colors = options.colors
@@ -377,14 +377,6 @@ def render_maze(
 
     _draw_walls(draw, layout, maze, blocked, colors.wall)
     return image
-
-
-def _as_maze(maze: Maze | str) -> Maze:
-    if isinstance(maze, Maze):
-        return maze
-    if isinstance(maze, str):
-        return Maze.from_string(maze)
-    raise ValueError(f"expected a Maze or a maze string, not {maze!r}")
 
 
 def _draw_path(
@@ -522,7 +514,7 @@ def render_mazes_grid(
     ``cell_size`` every maze is drawn with the same one, chosen so the largest
     maze is about :data:`GRID_TARGET_SIDE` px, so sizes compare at a glance.
     """
-    mazes = [_as_maze(maze) for maze in mazes]
+    mazes = [as_maze(maze) for maze in mazes]
     if not mazes:
         raise ValueError("render_mazes_grid needs at least one maze")
     if columns is None:

@@ -22,10 +22,11 @@ import numpy as np
 
 from amaze.directions import OFFSETS, direction_between
 from amaze.errors import AmazeError, EpisodeEndedError
-from amaze.maze import Maze
+from amaze.maze import Maze, as_maze
 from amaze.observations import cell_image, continuous_observation, discrete_observation
 from amaze.rewards import DEFAULT_DEADLINE_FACTOR, RewardScheme, paper_reward, pretty_reward
 from amaze.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
+from amaze.spec import MazeSpec
 
 
 @dataclass
@@ -74,7 +75,7 @@ class Simulation:
 
     def __init__(
         self,
-        maze: Maze | str,
+        maze: Maze | MazeSpec | str,
         robot: Robot | str = "DD",
         *,
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
@@ -86,10 +87,12 @@ class Simulation:
 
     # -- episode --------------------------------------------------------------
 
-    def reset(self, maze: Maze | str | None = None, robot: Robot | str | None = None) -> None:
+    def reset(
+        self, maze: Maze | MazeSpec | str | None = None, robot: Robot | str | None = None
+    ) -> None:
         """Start a new episode, optionally in another maze or with another robot."""
         if maze is not None:
-            self.maze = maze if isinstance(maze, Maze) else Maze.from_string(maze)
+            self.maze = as_maze(maze)
         if robot is not None:
             self.robot = as_robot(robot)
         self.dt = 1.0 if self.robot.discrete_outputs else 0.1
@@ -154,8 +157,6 @@ class Simulation:
             self.stats.collisions += 1
         if self.cell != start_cell:
             self.previous_cell = start_cell
-        if self.robot.discrete_outputs:
-            self._count_sign_move(start_cell, operator.index(action))
         reward += self.rewards.timestep
         self.stats.steps += 1
         if self.done():
@@ -172,17 +173,9 @@ class Simulation:
         return reward
 
     def _count_sign_move(self, cell: tuple[int, int], direction: int) -> None:
-        kind = self.maze.cell_signs.kind[cell]
-        if kind >= 0:
-            truth = self._truth_at(cell)
-            name = ("clue", "lure", "trap")[kind]
-            self.stats.sign_moves[name][int(direction != truth)] += 1
-
-    def _truth_at(self, cell: tuple[int, int]) -> int:
-        for placed in self.maze.signs:
-            if placed.cell == cell:
-                return int(placed.truth)
-        raise AssertionError(f"no sign in {cell}")
+        placed = self.maze.sign_at(cell)
+        if placed is not None:
+            self.stats.sign_moves[placed.kind.value][int(direction != placed.truth)] += 1
 
     def _move_discrete(self, action: Any) -> tuple[bool, tuple[float, float]]:
         try:
@@ -192,6 +185,7 @@ class Simulation:
         if direction not in (0, 1, 2, 3) or isinstance(action, bool):
             raise AmazeError(f"discrete action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
         i, j = self.cell
+        self._count_sign_move((i, j), direction)
         offset = OFFSETS[direction]
         if self.maze.walls[i, j, direction]:
             return True, (float(offset[0]), float(offset[1]))

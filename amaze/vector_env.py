@@ -20,8 +20,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from amaze.engine import BatchEngine
-from amaze.gym_env import DEFAULT_MAZE, _as_maze, action_space, observation_space
-from amaze.maze import Maze
+from amaze.gym_env import DEFAULT_MAZE, action_space, observation_space
+from amaze.maze import Maze, as_maze
 from amaze.robot import Robot, as_robot
 from amaze.spec import MazeSpec
 
@@ -46,7 +46,7 @@ class MazeVectorEnv(VectorEnv):
         mazes = [maze] if isinstance(maze, (str, Maze, MazeSpec)) else list(maze)
         if not mazes:
             raise ValueError("maze: give at least one maze")
-        self.mazes = [_as_maze(m) for m in mazes]
+        self.mazes = [as_maze(m) for m in mazes]
         self.robot = as_robot(robot)
         self.num_envs = num_envs
         self.engine = BatchEngine(

@@ -55,11 +55,16 @@ class EpisodeStats:
 
 @dataclass
 class Trajectory:
-    """Positions (before each step), actions and rewards of an episode, as arrays."""
+    """Positions (before each step), actions and rewards of an episode.
+
+    ``final_position`` is where the robot stands after the last step recorded.
+    Discrete actions are recorded as their unit offsets (E = (1, 0), ...).
+    """
 
     positions: list[tuple[float, float]] = field(default_factory=list)
     actions: list[tuple[float, float]] = field(default_factory=list)
     rewards: list[float] = field(default_factory=list)
+    final_position: tuple[float, float] | None = None
 
     def as_arrays(self) -> dict[str, np.ndarray]:
         """``positions`` (n, 2), ``actions`` (n, 2) and ``rewards`` (n,) as float arrays."""
@@ -170,6 +175,7 @@ class Simulation:
             self.trajectory.positions.append(start_position)
             self.trajectory.actions.append(recorded_action)
             self.trajectory.rewards.append(reward)
+            self.trajectory.final_position = self.position
         return reward
 
     def _count_sign_move(self, cell: tuple[int, int], direction: int) -> None:

@@ -14,37 +14,135 @@
   (cells outside the maze are black; only the robot's own cell shows the
   arrival pixel).
 
-These functions are the definition; the batch engine reproduces them from
-precomputed tables and is cross-checked against them in the tests.
+Two layers: :func:`discrete_input` and :func:`draw_cell` build an input from
+the content of a cell given directly (its walls, arrival side and sign), so
+that inputs can be synthesised without a maze (the input-recognition test,
+:mod:`amaze.inputs`, enumerates them that way); :func:`discrete_observation`,
+:func:`cell_image` and :func:`continuous_observation` read that content from a
+maze. These functions are the definition; the batch engine reproduces them
+from precomputed tables and is cross-checked against them in the tests.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
+from amaze.errors import AmazeError
 from amaze.maze import Maze
+from amaze.robot import MIN_VISION
 from amaze.sign_images import sign_frames
+from amaze.signs import Sign
+
+__all__ = [
+    "ObservationError",
+    "cell_image",
+    "continuous_observation",
+    "discrete_input",
+    "discrete_observation",
+    "draw_cell",
+]
 
 
-def discrete_observation(maze: Maze, cell: tuple[int, int], arrival: int | None) -> np.ndarray:
-    """The 8-float input in ``cell``; ``arrival`` is the side the agent came from."""
-    i, j = cell
+class ObservationError(AmazeError):
+    """A cell description given to an input builder is invalid (the message names the value)."""
+
+
+# -- inputs from the content of a cell ------------------------------------------------
+
+
+def discrete_input(
+    walls: Sequence[int] | np.ndarray,
+    arrival: int | None = None,
+    sign_value: float | None = None,
+    sign_direction: int | None = None,
+) -> np.ndarray:
+    """The 8-float discrete input of a cell described by its content.
+
+    ``walls`` gives the four sides E, N, W, S (1 = wall, 0 = open); ``arrival``
+    is the open side the agent came from (``None`` on the first step);
+    ``sign_value`` and ``sign_direction`` describe the sign in the cell, if any
+    (both or neither). A sign may point anywhere, walls included (lures do).
+
+    :raises ObservationError: naming the bad value.
+    """
+    wall_array = _check_walls(walls)
+    arrival = _check_side("arrival", arrival)
+    if arrival is not None and wall_array[arrival]:
+        raise ObservationError(f"arrival side {arrival} is walled in walls {_wall_code(walls)}")
+    if (sign_value is None) != (sign_direction is None):
+        raise ObservationError(
+            f"sign_value={sign_value!r} and sign_direction={sign_direction!r}: give both or neither"
+        )
+    if sign_value is not None:
+        if isinstance(sign_value, bool) or not isinstance(sign_value, (int, float, np.floating)):
+            raise ObservationError(f"sign_value {sign_value!r} is not a number")
+        if not 0.0 < float(sign_value) <= 1.0:
+            raise ObservationError(f"sign_value {sign_value!r} is not in ]0, 1]")
+    sign_direction = _check_side("sign_direction", sign_direction)
+    return _discrete_input(wall_array, arrival, sign_value, sign_direction)
+
+
+def draw_cell(
+    walls: Sequence[int] | np.ndarray,
+    vision: int,
+    arrival: int | None = None,
+    sign: Sign | None = None,
+    sign_direction: int | None = None,
+) -> np.ndarray:
+    """The ``vision x vision`` float32 image of a cell described by its content (§5.2).
+
+    Arguments as in :func:`discrete_input`, except that the sign is a
+    :class:`~amaze.signs.Sign` (its shape is drawn, at its lightness).
+    ``vision`` is odd and at least 5 (the sign image needs 3 pixels).
+
+    :raises ObservationError: naming the bad value.
+    """
+    wall_array = _check_walls(walls)
+    if (
+        not isinstance(vision, (int, np.integer))
+        or isinstance(vision, bool)
+        or vision % 2 != 1
+        or vision < MIN_VISION
+    ):
+        raise ObservationError(f"vision {vision!r} must be an odd integer of at least {MIN_VISION}")
+    arrival = _check_side("arrival", arrival)
+    if arrival is not None and wall_array[arrival]:
+        raise ObservationError(f"arrival side {arrival} is walled in walls {_wall_code(walls)}")
+    if (sign is None) != (sign_direction is None):
+        raise ObservationError(
+            f"sign={sign!r} and sign_direction={sign_direction!r}: give both or neither"
+        )
+    if sign is not None and not isinstance(sign, Sign):
+        raise ObservationError(f"sign {sign!r} is not a Sign")
+    sign_direction = _check_side("sign_direction", sign_direction)
+    return _draw_cell(wall_array, int(vision), arrival, sign, sign_direction)
+
+
+def _discrete_input(
+    walls: np.ndarray,
+    arrival: int | None,
+    sign_value: float | None,
+    sign_direction: int | None,
+) -> np.ndarray:
     obs = np.zeros(8, dtype=np.float32)
-    obs[:4] = maze.walls[i, j]
+    obs[:4] = walls
     if arrival is not None:
         obs[arrival] = 0.5
-    direction = maze.cell_signs.direction[i, j]
-    if direction >= 0:
-        obs[4 + direction] = maze.cell_signs.value[i, j]
+    if sign_direction is not None:
+        obs[4 + sign_direction] = sign_value
     return obs
 
 
-def cell_image(
-    maze: Maze, cell: tuple[int, int], vision: int, arrival: int | None = None
+def _draw_cell(
+    walls: np.ndarray,
+    vision: int,
+    arrival: int | None,
+    sign: Sign | None,
+    sign_direction: int | None,
 ) -> np.ndarray:
-    """The ``vision x vision`` float32 image of ``cell`` (reference §5.2)."""
-    i, j = cell
-    east, north, west, south = (float(w) for w in maze.walls[i, j])
+    east, north, west, south = (float(w) for w in walls)
     image = np.zeros((vision, vision), dtype=np.float32)
     image[:, -1] = east
     image[0, :] = north
@@ -54,13 +152,63 @@ def cell_image(
     image[0, 0] = max(north, west)
     image[-1, -1] = max(south, east)
     image[-1, 0] = max(south, west)
-    sign = maze.sign_at((i, j))
     if sign is not None:
-        image[1:-1, 1:-1] = sign_frames(sign.sign, vision - 2)[int(sign.direction)]
+        image[1:-1, 1:-1] = sign_frames(sign, vision - 2)[sign_direction]
     if arrival is not None:
         middle = vision // 2
         image[[(middle, -1), (0, middle), (middle, 0), (-1, middle)][arrival]] = 1.0
     return image
+
+
+def _check_walls(walls: object) -> np.ndarray:
+    try:
+        array = np.asarray(walls)
+    except (TypeError, ValueError):
+        array = None
+    if (
+        array is None
+        or array.shape != (4,)
+        or not (np.issubdtype(array.dtype, np.integer) or array.dtype == bool)
+        or not np.isin(array, (0, 1)).all()
+    ):
+        raise ObservationError(f"walls {walls!r} must be four 0/1 values (E, N, W, S)")
+    return array.astype(np.uint8)
+
+
+def _check_side(name: str, side: object) -> int | None:
+    if side is None:
+        return None
+    if isinstance(side, bool) or not isinstance(side, (int, np.integer)) or not 0 <= side <= 3:
+        raise ObservationError(f"{name} {side!r} is not a direction 0..3 (E, N, W, S) or None")
+    return int(side)
+
+
+def _wall_code(walls: Sequence[int] | np.ndarray) -> str:
+    return "".join(str(int(w)) for w in np.asarray(walls).reshape(-1))
+
+
+# -- inputs read from a maze ----------------------------------------------------------
+
+
+def discrete_observation(maze: Maze, cell: tuple[int, int], arrival: int | None) -> np.ndarray:
+    """The 8-float input in ``cell``; ``arrival`` is the side the agent came from."""
+    i, j = cell
+    direction = int(maze.cell_signs.direction[i, j])
+    if direction < 0:
+        return _discrete_input(maze.walls[i, j], arrival, None, None)
+    return _discrete_input(maze.walls[i, j], arrival, maze.cell_signs.value[i, j], direction)
+
+
+def cell_image(
+    maze: Maze, cell: tuple[int, int], vision: int, arrival: int | None = None
+) -> np.ndarray:
+    """The ``vision x vision`` float32 image of ``cell`` (reference §5.2)."""
+    placed = maze.sign_at(tuple(cell))
+    if placed is None:
+        return _draw_cell(maze.walls[cell[0], cell[1]], vision, arrival, None, None)
+    return _draw_cell(
+        maze.walls[cell[0], cell[1]], vision, arrival, placed.sign, int(placed.direction)
+    )
 
 
 def continuous_observation(

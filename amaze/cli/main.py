@@ -1,8 +1,12 @@
-"""The ``amaze`` command: inspect, render and measure mazes from their strings.
+"""The ``amaze`` command: inspect, render and measure mazes; run agents in them.
 
-Every sub-command takes maze strings (``-`` reads them from standard input, one
-per line). User mistakes print one line ``error: ...`` on standard error and
-exit with status 2; there is no traceback for bad input.
+Sub-commands: ``inspect``, ``render``, ``stats`` (mazes from their strings;
+``-`` reads them from standard input, one per line), ``run`` (alias ``play``:
+one controller, one episode, optional trajectory PNG and GIF), ``inputs``
+(the input-recognition test) and ``suite`` (the standard evaluation suite:
+list, render, evaluate a controller). User mistakes print one line
+``error: ...`` on standard error and exit with status 2; there is no traceback
+for bad input.
 """
 
 from __future__ import annotations
@@ -96,6 +100,162 @@ def _cmd_stats(args: argparse.Namespace) -> None:
         print(f"wrote {len(rows)} rows to {path}")
 
 
+def _output_file(text: str | None, suffix: str) -> Path | None:
+    """A writable output file name with the given suffix, or None."""
+    if text is None:
+        return None
+    path = Path(text)
+    if path.is_dir():
+        raise UsageError(f"output '{path}' is a folder; give a file name ending in {suffix}")
+    if path.suffix.lower() != suffix:
+        raise UsageError(f"output '{path}' must end in {suffix}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _controller(args: argparse.Namespace):
+    from amaze.controllers import make_controller
+
+    return make_controller(args.controller, args.robot, seed=args.seed)
+
+
+def _cmd_run(args: argparse.Namespace) -> None:
+    from amaze.maze import Maze
+    from amaze.policy import record_episode
+    from amaze.robot import as_robot
+
+    trajectory_png = _output_file(args.trajectory, ".png")
+    gif = _output_file(args.gif, ".gif")
+    maze = Maze.from_string(args.maze)
+    robot = as_robot(args.robot)
+    policy = _controller(args)
+    result, trajectory = record_episode(maze, robot, policy, deadline_factor=args.deadline_factor)
+    outcome = {
+        "maze": maze.to_string(),
+        "robot": robot.to_string(),
+        "controller": args.controller,
+        "success": bool(result.success[0]),
+        "steps": int(result.steps[0]),
+        "path_length": int(result.path_length[0]),
+        "collisions": int(result.collisions[0]),
+        "backsteps": int(result.backsteps[0]),
+        "cumulative_reward": float(result.cumulative_reward[0]),
+        "pretty_reward": float(result.pretty_reward[0]),
+        "paper_reward": float(result.paper_reward[0]),
+    }
+    if args.json:
+        print(json.dumps(outcome))
+    else:
+        print(
+            f"{outcome['maze']} ({outcome['robot']}, {args.controller}):"
+            f" {'success' if outcome['success'] else 'failure'} in {outcome['steps']} steps"
+            f" (path length {outcome['path_length']}), {outcome['collisions']} collisions,"
+            f" {outcome['backsteps']} backward steps"
+        )
+        print(
+            f"  reward {outcome['cumulative_reward']:.2f}, pretty reward"
+            f" {outcome['pretty_reward']:+.3f}, R̄ {outcome['paper_reward']:+.3f}"
+        )
+    if trajectory_png is not None or gif is not None:
+        from amaze.trajectories import save_episode_gif, save_trajectory_png
+
+        caption = (
+            f"{args.controller} controller · paper reward {outcome['paper_reward']:+.3f}"
+            f" · pretty reward {outcome['pretty_reward']:+.3f}"
+        )
+        if trajectory_png is not None:
+            save_trajectory_png(maze, trajectory, trajectory_png, caption=caption)
+            print(f"trajectory -> {trajectory_png}")
+        if gif is not None:
+            save_episode_gif(maze, trajectory, gif)
+            print(f"animation -> {gif}")
+
+
+def _cmd_inputs(args: argparse.Namespace) -> None:
+    from amaze.inputs import evaluate_inputs, inputs_for_maze
+
+    csv_path = _output_file(args.csv, ".csv")
+    png_path = _output_file(args.png, ".png")
+    input_set = inputs_for_maze(
+        args.signs_from, args.robot, empty_intersections=args.empty_intersections
+    )
+    policy = _controller(args)
+    if callable(getattr(policy, "bind", None)):
+        raise UsageError(
+            f"controller '{args.controller}' reads the maze itself; the input-recognition"
+            " test needs a controller that acts on its observations"
+        )
+    recognition = evaluate_inputs(policy, input_set)
+    rates = ", ".join(f"{name} {100 * rate:.1f}%" for name, rate in recognition.rates.items())
+    print(
+        f"{len(input_set)} inputs ({args.robot}, {args.controller}):"
+        f" {100 * recognition.overall:.1f}% correct; {rates}"
+    )
+    if csv_path is not None:
+        recognition.write_csv(csv_path)
+        print(f"table -> {csv_path}")
+    if png_path is not None:
+        recognition.save_summary_png(png_path)
+        print(f"summary -> {png_path}")
+
+
+def _cmd_suite(args: argparse.Namespace) -> None:
+    from amaze.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, standard_suite
+
+    render_path = _output_file(args.render, ".png")
+    csv_path = _output_file(args.csv, ".csv")
+    if csv_path is not None and args.evaluate is None:
+        raise UsageError("--csv needs --evaluate CONTROLLER")
+    suite = standard_suite()
+    if args.evaluate is not None:
+        from amaze.evaluation import evaluate
+
+        args.controller = args.evaluate
+        policy = _controller(args)
+        report = evaluate(policy, args.robot, deadline_factor=args.deadline_factor)
+        print(f"{args.evaluate} controller on the standard evaluation suite:")
+        print(report.format())
+        if csv_path is not None:
+            report.write_csv(csv_path)
+            print(f"episodes -> {csv_path}")
+    elif args.json:
+        print(json.dumps(suite.to_dict()))
+    else:
+        print(f"standard evaluation suite: {len(suite)} mazes x 4 rotations"
+              f" (S from samples of {suite.sample_size} mazes per column)")  # fmt: skip
+        for maze in suite.mazes:
+            print(f"  {maze.column:<9} {maze.row:<6} S={maze.surprisingness:.3f}  {maze.string}")
+        print(f"paper pair: train {PAPER_TRAINING_MAZE}, evaluate {PAPER_EVALUATION_MAZE}")
+    if render_path is not None:
+        from amaze.maze import Maze
+        from amaze.render import render_mazes_grid
+
+        mazes = [Maze.from_string(m.string) for m in suite.mazes]
+        columns = len({m.column for m in suite.mazes})
+        rows = len(mazes) // columns
+        by_row = [mazes[c * rows + r] for r in range(rows) for c in range(columns)]
+        render_mazes_grid(by_row, columns=columns).save(render_path)
+        print(f"suite picture -> {render_path}")
+
+
+def _add_agent_options(parser: argparse.ArgumentParser, controller: bool = True) -> None:
+    parser.add_argument("--robot", default="DD", help="robot string: DD, H15, CC15, ... (DD)")
+    if controller:
+        parser.add_argument(
+            "--controller",
+            default="random",
+            help="random, oracle, or a saved tabular agent (.json) (default random)",
+        )
+    parser.add_argument("--seed", type=int, default=0, help="seed of random controllers (0)")
+    parser.add_argument(
+        "--deadline-factor",
+        type=float,
+        default=4.0,
+        metavar="F",
+        help="episodes end after F x path length time units (4)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``amaze`` and its sub-commands."""
     parser = _Parser(
@@ -132,6 +292,46 @@ def build_parser() -> argparse.ArgumentParser:
     stats.add_argument("mazes", nargs="+", metavar="MAZE", help="maze strings; - reads stdin")
     stats.add_argument("--csv", metavar="FILE", help="also write the table as CSV")
     stats.set_defaults(run=_cmd_stats)
+
+    for name in ("run", "play"):
+        run = commands.add_parser(
+            name,
+            help="run a controller for one episode in a maze"
+            + (" (same as run)" if name == "play" else ""),
+        )
+        run.add_argument("maze", metavar="MAZE", help="maze string")
+        _add_agent_options(run)
+        run.add_argument("--trajectory", metavar="PNG", help="save the trajectory picture")
+        run.add_argument("--gif", metavar="GIF", help="save an animation of the episode")
+        run.add_argument("--json", action="store_true", help="print the outcome as JSON")
+        run.set_defaults(run=_cmd_run)
+
+    inputs = commands.add_parser("inputs", help="the input-recognition test of a controller")
+    _add_agent_options(inputs)
+    inputs.add_argument(
+        "--signs-from",
+        default="M0_20x20_C1_l.25_L.25_t.5_T.5",
+        metavar="MAZE",
+        help="take the clue, lure and trap signs of this maze string (C1, L.25, T.5)",
+    )
+    inputs.add_argument(
+        "--empty-intersections", action="store_true", help="also test sign-less intersections"
+    )
+    inputs.add_argument("--csv", metavar="FILE", help="write every input and answer as CSV")
+    inputs.add_argument("--png", metavar="FILE", help="write the summary picture")
+    inputs.set_defaults(run=_cmd_inputs)
+
+    suite = commands.add_parser(
+        "suite", help="list, render or evaluate on the standard evaluation suite"
+    )
+    suite.add_argument("--json", action="store_true", help="print the suite as JSON")
+    suite.add_argument("--render", metavar="PNG", help="draw the 18 mazes (columns x rows)")
+    suite.add_argument(
+        "--evaluate", metavar="CONTROLLER", help="evaluate random, oracle or a tabular .json"
+    )
+    _add_agent_options(suite, controller=False)
+    suite.add_argument("--csv", metavar="FILE", help="with --evaluate: one row per episode")
+    suite.set_defaults(run=_cmd_suite)
     return parser
 
 

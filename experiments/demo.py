@@ -1,15 +1,24 @@
 """The main job on built-in defaults (``make demo``).
 
-For now it shows the maze core: it generates a few mazes of each class (trivial,
-simple, lures, traps, complex) and the paper's direct-training and evaluation
-mazes, renders them to PNG, prints their statistics and metrics, and writes the
-table as CSV. Outputs go to ``demo_output/`` (or ``--out DIR``).
+1. Mazes: it generates a few mazes of each class (trivial, simple, lures,
+   traps, complex) and the paper's direct-training and evaluation mazes,
+   renders them to PNG, prints their statistics and metrics, and writes the
+   table as CSV.
+2. Agents: it evaluates the built-in oracle and (seeded) random controllers
+   on the standard evaluation suite (18 mazes x 4 rotations) with the
+   evaluation protocol every agent of the project goes through, runs the
+   input-recognition test of the random controller, and records one episode
+   of each controller in the paper's evaluation maze as a trajectory PNG and
+   an animated GIF.
+
+Outputs go to ``demo_output/`` (or ``--out DIR``).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 import time
 from pathlib import Path
@@ -30,6 +39,57 @@ CLASS_EXAMPLES: dict[str, list[str]] = {
         "M2000018_20x20_C1_l.25_L.25_t.5_T.5",  # and its evaluation maze
     ],
 }
+
+
+def run_agents(out: Path, robot: str = "DD") -> None:
+    """Evaluate the oracle and random controllers; save trajectories and the inputs test."""
+    from amaze.controllers import OracleController, RandomController
+    from amaze.evaluation import Evaluator
+    from amaze.inputs import evaluate_inputs, inputs_for_maze
+    from amaze.policy import record_episode
+    from amaze.suite import PAPER_EVALUATION_MAZE, standard_suite
+    from amaze.trajectories import save_episode_gif, save_trajectory_png
+
+    agents_dir = out / "agents"
+    agents_dir.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    evaluator = Evaluator(robot)
+    print(
+        f"\nstandard evaluation suite: {len(standard_suite())} mazes x 4 rotations,"
+        f" prepared in {time.perf_counter() - started:.2f} s"
+    )
+    controllers = {"oracle": OracleController(robot), "random": RandomController(robot, seed=0)}
+    summaries = {}
+    for name, controller in controllers.items():
+        started = time.perf_counter()
+        report = evaluator.evaluate(controller)
+        elapsed = time.perf_counter() - started
+        print(f"\n{name} controller (evaluated in {elapsed:.3f} s):")
+        print(report.format())
+        report.write_csv(agents_dir / f"suite_{name}.csv")
+        summaries[name] = report.summary()
+
+    recognition = evaluate_inputs(RandomController(robot, seed=0), inputs_for_maze(
+        PAPER_EVALUATION_MAZE, robot
+    ))  # fmt: skip
+    recognition.write_csv(agents_dir / "inputs_random.csv")
+    recognition.save_summary_png(agents_dir / "inputs_random.png")
+    print(
+        f"\ninput-recognition picture of the random controller: {agents_dir / 'inputs_random.png'}"
+    )
+
+    for name, controller in controllers.items():
+        result, trajectory = record_episode(PAPER_EVALUATION_MAZE, robot, controller)
+        caption = (
+            f"{name} controller · paper reward {float(result.paper_reward[0]):+.3f}"
+            f" · pretty reward {float(result.pretty_reward[0]):+.3f}"
+        )
+        save_trajectory_png(
+            PAPER_EVALUATION_MAZE, trajectory, agents_dir / f"trajectory_{name}.png",
+            caption=caption,
+        )  # fmt: skip
+        save_episode_gif(PAPER_EVALUATION_MAZE, trajectory, agents_dir / f"episode_{name}.gif")
+    (agents_dir / "summary.json").write_text(json.dumps(summaries, indent=1) + "\n")
 
 
 def run(out: Path) -> Path:
@@ -57,18 +117,29 @@ def run(out: Path) -> Path:
         writer.writerows(rows)
 
     print(f"\n{len(mazes)} mazes in {time.perf_counter() - started:.1f} s")
-    print(f"outputs in {out.resolve()}/:")
-    print("  classes.png          overview: three mazes of each class (rows)")
-    print("  mazes/*.png          every maze, light and dark themes")
-    print("  mazes.csv            the table above")
     return table
+
+
+def print_outputs(out: Path) -> None:
+    print(f"\noutputs in {out.resolve()}/:")
+    print("  classes.png                  overview: three mazes of each class (rows)")
+    print("  mazes/*.png                  every maze, light and dark themes")
+    print("  mazes.csv                    the maze table above")
+    print("  agents/summary.json          oracle and random scores on the evaluation suite")
+    print("  agents/suite_*.csv           their 72 episodes each")
+    print("  agents/trajectory_*.png      one episode of each in the paper's evaluation maze")
+    print("  agents/episode_*.gif         the same episodes, animated")
+    print("  agents/inputs_random.*       the input-recognition test of the random controller")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="demo_output", help="output folder (default demo_output)")
     args = parser.parse_args(argv)
-    run(Path(args.out))
+    out = Path(args.out)
+    run(out)
+    run_agents(out)
+    print_outputs(out)
     return 0
 
 

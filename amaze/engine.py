@@ -16,14 +16,32 @@ the same step (gymnasium's "same-step" autoreset: the returned observation is
 the first one of the new episode, the last one of the old episode is in
 ``StepResult.final_observations``).
 
-The hot loops are numba kernels parallel over agents; all per-agent state
-lives in two arrays (integers and floats) so that the kernels stay small.
+The hot loops are numba kernels. Per-agent state is one int32 row and one
+float64 row per agent. A discrete step reads few bytes: the agent's global
+cell and arrival code (0 at the start, else ``1 + d`` for the side ``d``
+leading back to the previous cell) give the move in the neighbour table and
+the observation directly. Continuous robots keep their float position and
+velocity and their current and previous cells. A kernel validates the actions
+before touching any state and lists the episodes that ended in compact
+buffers, so that :meth:`BatchEngine.step` does little besides allocating the
+arrays it returns.
+
+Kernels come in a serial and a parallel (``prange``) version. A parallel step
+pays a thread start-up and a barrier on every call, which a small batch does
+not win back, and it stalls for a scheduler time slice (milliseconds) whenever
+a worker thread waits for a core that another process holds: on a busy
+machine a parallel step can be ten times slower than a serial one. So by
+default the parallel kernels run large enough batches on a machine with idle
+cores, and the serial ones everything else (``BatchEngine(parallel=...)``
+decides otherwise).
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NoReturn, TypeVar
 
 import numba
 import numpy as np
@@ -43,22 +61,34 @@ from amaze.tables import MazeTables, compile_mazes
 
 __all__ = ["BatchEngine", "EpisodeEndedError", "EpisodeStatistics", "StepResult"]
 
+_Dataclass = TypeVar("_Dataclass")
+
 
 # -----------------------------------------------------------------------------
-# State layout (column indices, compile-time constants for numba)
+# Layout (column indices, compile-time constants for numba)
 
-# integer state, int64 (n_agents, 9)
-_MAZE, _CI, _CJ, _PI, _PJ, _T, _STEPS, _COLL, _BACK = range(9)
-_N_ISTATE = 9
-# float state, float64 (n_agents, 5): position, velocity, cumulative reward
+# per-agent integers, int32 (n_agents, 10): maze, global cell and arrival code
+# (discrete and hybrid robots), step count, collisions, backward steps, current
+# and previous cell (continuous robots)
+_MAZE, _CELL, _ARR, _T, _COLL, _BACK, _CI, _CJ, _PI, _PJ = range(10)
+_N_ISTATE = 10
+# per-agent floats, float64 (n_agents, 5): position, velocity, cumulative reward
 _X, _Y, _VX, _VY, _RET = range(5)
 _N_FSTATE = 5
-# per-maze integers, int64 (n_mazes, 8)
-_OFF, _W, _H, _SI, _SJ, _EI, _EJ, _L = range(8)
+# per-maze integers, int64 (n_mazes, 10): cell offset, size, start and end as
+# local (i, j) and as global cells, path length
+_OFF, _W, _H, _SI, _SJ, _EI, _EJ, _L, _START, _END = range(10)
 # per-maze floats, float64 (n_mazes, 2)
 _DEADLINE, _FINISH = range(2)
-# episode statistics, int64 (n_agents, 4)
-_EP_STEPS, _EP_COLL, _EP_BACK, _EP_SUCC = range(4)
+# episode statistics of the ended episodes, int64 (5, n_agents), compact
+_EP_AGENT, _EP_STEPS, _EP_COLL, _EP_BACK, _EP_LEN = range(5)
+_N_EP_INT = 5
+
+_INT64 = np.dtype(np.int64)
+
+# kernel status codes (a kernel returns the number of ended episodes, or one of these)
+_BAD_ACTION = -1
+_STEPPED_ENDED = -2
 
 _COLLISION = COLLISION_PENALTY
 _BACKWARD = BACKWARD_PENALTY
@@ -68,21 +98,37 @@ _ACC_SCALE = ACCELERATION_SCALE
 _DT_CONTINUOUS = 0.1
 _MIN_SPEED = min(0.01, ACCELERATION_SCALE / 2)
 
+#: The parallel kernels are chosen by default from this much work per step
+#: (agents times the relative cost of an agent-step, ``_WORK_PER_AGENT``): some
+#: 50 µs of serial work, against a thread start-up and barrier of about 10 µs.
+_PARALLEL_MIN_WORK = 4096
+_WORK_PER_AGENT = {"discrete": 1, "hybrid": 8, "continuous": 16}
+
 
 # -----------------------------------------------------------------------------
 # Compiled helpers
+
+#: Decorator of the serial kernels. They run without numba's reference counting
+#: (they only index arrays they are given and allocate none): with it, every
+#: array handed to an inlined helper is increfed and decrefed on each iteration
+#: of the agent loop, which made a discrete step three times slower. (The
+#: parallel kernels' loop bodies are compiled without those operations.)
+_serial_kernel = numba.njit(cache=True, _nrt=False)
+
+
+@numba.njit(cache=True, inline="always")
+def _u(index):
+    """An index known to be non-negative, as unsigned.
+
+    Numba then skips the negative-index wraparound of each array access in the
+    hot loops.
+    """
+    return numba.uint64(index)
 
 
 @numba.njit(cache=True, inline="always")
 def _wall(walls, off, h, i, j, d):
     return (walls[off + i * h + j] >> d) & 1
-
-
-@numba.njit(cache=True, inline="always")
-def _global_cell(k, ist, mint):
-    """Index of agent ``k``'s cell in the concatenated per-cell tables."""
-    m = ist[k, _MAZE]
-    return mint[m, _OFF] + ist[k, _CI] * mint[m, _H] + ist[k, _CJ]
 
 
 @numba.njit(cache=True, inline="always")
@@ -105,83 +151,103 @@ def _arrival_side(ci, cj, pi, pj):
 
 @numba.njit(cache=True, inline="always")
 def _reset_agent(k, ist, fst, mint):
+    """Put agent ``k`` back at the start of its maze with fresh counters."""
     m = ist[k, _MAZE]
     si = mint[m, _SI]
     sj = mint[m, _SJ]
+    ist[k, _CELL] = mint[m, _START]
+    ist[k, _ARR] = 0
     ist[k, _CI] = si
     ist[k, _CJ] = sj
     ist[k, _PI] = si
     ist[k, _PJ] = sj
-    ist[k, _T] = 0
-    ist[k, _STEPS] = 0
-    ist[k, _COLL] = 0
-    ist[k, _BACK] = 0
     fst[k, _X] = si + 0.5
     fst[k, _Y] = sj + 0.5
     fst[k, _VX] = 0.0
     fst[k, _VY] = 0.0
+    ist[k, _T] = 0
+    ist[k, _COLL] = 0
+    ist[k, _BACK] = 0
     fst[k, _RET] = 0.0
 
 
 @numba.njit(cache=True, inline="always")
-def _account(k, collision, ni, nj, dt, ist, fst, mint, mflt, rewards, term, trunc):
-    """Reward and bookkeeping of one step, in the reference's order (§4.5).
+def _check_ended(ended, auto_reset):
+    """0 unless an agent whose episode ended would be stepped (without auto-reset)."""
+    if not auto_reset:
+        for k in range(ended.shape[0]):
+            if ended[k]:
+                return _STEPPED_ENDED
+    return 0
 
-    Returns True when the episode ended (goal reached or deadline).
+
+@numba.njit(cache=True, inline="always")
+def _check_discrete(actions, ended, auto_reset):
+    """0 when no ended agent is stepped and every action is in 0..3, else a status code."""
+    status = _check_ended(ended, auto_reset)
+    bad = False
+    for k in range(actions.shape[0]):
+        bad |= (actions[k] < 0) | (actions[k] > 3)
+    if bad and status == 0:
+        return _BAD_ACTION
+    return status
+
+
+@numba.njit(cache=True, inline="always")
+def _grid_step(k, a, ist, fst, mint, mflt, neighbours, rewards, term, trunc):
+    """One discrete move of agent ``k`` (§4.3, §4.5); True when its episode ended.
+
+    The reward is summed in the reference's order (collision, time step,
+    finish, backward step); adding a 0.0 term is exact, so the float is the
+    reference's.
     """
-    m = ist[k, _MAZE]
-    ci = ist[k, _CI]
-    cj = ist[k, _CJ]
-    ppi = ist[k, _PI]
-    ppj = ist[k, _PJ]
-    t = ist[k, _T]
-    reward = 0.0
-    if collision:
-        reward += _COLLISION
+    g = ist[k, _CELL]
+    target = neighbours[_u(g), _u(a)]
+    arrival = ist[k, _ARR]
+    penalty = 0.0
+    backward = 0.0
+    if target < 0:  # a wall: no move, the arrival side stays
+        target = g
+        penalty = _COLLISION
         ist[k, _COLL] += 1
-    pi = ppi
-    pj = ppj
-    if ni != ci or nj != cj:
-        pi = ci
-        pj = cj
-    reward += -dt
-    ist[k, _STEPS] += 1
-    success = ni == mint[m, _EI] and nj == mint[m, _EJ]
+    else:
+        if arrival == a + 1:  # back into the cell just left
+            backward = _BACKWARD
+            ist[k, _BACK] += 1
+        ist[k, _ARR] = ((a + 2) & 3) + 1
+        ist[k, _CELL] = target
+    m = _u(ist[k, _MAZE])
+    tk = ist[k, _T]
+    reward = penalty + -1.0
+    success = target == mint[m, _END]
     deadline = mflt[m, _DEADLINE]
-    if success or t >= deadline:
+    if success or tk >= deadline:
         reward += mflt[m, _FINISH]
-    if (ppi != pi or ppj != pj) and ppi == ni and ppj == nj:
-        reward += _BACKWARD
-        ist[k, _BACK] += 1
+    reward += backward
+    tk += 1
+    ist[k, _T] = tk
     fst[k, _RET] += reward
-    t += 1
-    ist[k, _CI] = ni
-    ist[k, _CJ] = nj
-    ist[k, _PI] = pi
-    ist[k, _PJ] = pj
-    ist[k, _T] = t
     rewards[k] = reward
-    failure = t >= deadline
+    failure = tk >= deadline
     term[k] = success
     trunc[k] = failure
     return success or failure
 
 
 @numba.njit(cache=True, inline="always")
-def _record_end(k, success, ist, fst, ep_ret, ep_int):
-    ep_ret[k] = fst[k, _RET]
-    ep_int[k, _EP_STEPS] = ist[k, _STEPS]
-    ep_int[k, _EP_COLL] = ist[k, _COLL]
-    ep_int[k, _EP_BACK] = ist[k, _BACK]
-    ep_int[k, _EP_SUCC] = success
+def _observe_discrete(k, out, ist, rows):
+    """The 8 floats of agent ``k``: its cell's row, 0.5 on the arrival side (§5.1).
 
-
-@numba.njit(cache=True, inline="always")
-def _observe_discrete(k, out, ist, mint, dobs):
-    g = _global_cell(k, ist, mint)
-    a = _arrival_side(ist[k, _CI], ist[k, _CJ], ist[k, _PI], ist[k, _PJ]) + 1
+    ``rows`` holds each cell's observation without the arrival mark (the
+    arrival-0 rows of ``MazeTables.discrete_obs``; the arrival side is open, so
+    its slot holds 0 there): a fifth of the full table, so that it stays in cache.
+    """
+    g = _u(ist[k, _CELL])
     for s in range(8):
-        out[k, s] = dobs[g, a, s]
+        out[k, s] = rows[g, s]
+    arrival = ist[k, _ARR]
+    if arrival > 0:
+        out[k, arrival - 1] = 0.5
 
 
 @numba.njit(cache=True, inline="always")
@@ -198,17 +264,16 @@ def _marker(side, v):
 
 
 @numba.njit(cache=True, inline="always")
-def _observe_tile(k, out, ist, mint, tiles):
-    g = _global_cell(k, ist, mint)
-    ci = ist[k, _CI]
-    cj = ist[k, _CJ]
+def _observe_tile(k, out, ist, tiles):
+    """The ``v x v`` image of agent ``k``: its cell's tile and the origin marker (§5.2)."""
+    g = _u(ist[k, _CELL])
     v = out.shape[1]
     for r in range(v):
         for c in range(v):
             out[k, r, c] = tiles[g, r, c]
-    side = _arrival_side(ci, cj, ist[k, _PI], ist[k, _PJ])
-    if side >= 0:
-        r, c = _marker(side, v)
+    arrival = ist[k, _ARR]
+    if arrival > 0:
+        r, c = _marker(arrival - 1, v)
         out[k, r, c] = 255
 
 
@@ -239,23 +304,6 @@ def _observe_window(k, out, ist, fst, mint, canvas, canvas_off):
         c = mc - dpx
         if 0 <= r < v and 0 <= c < v:
             out[k, r, c] = 255
-
-
-@numba.njit(cache=True, inline="always")
-def _grid_move(k, a, ist, mint, walls):
-    """Discrete move (§4.3): the new cell and whether the robot bumped into a wall."""
-    m = ist[k, _MAZE]
-    ci = ist[k, _CI]
-    cj = ist[k, _CJ]
-    if _wall(walls, mint[m, _OFF], mint[m, _H], ci, cj, a):
-        return ci, cj, True
-    if a == 0:
-        return ci + 1, cj, False
-    if a == 1:
-        return ci, cj + 1, False
-    if a == 2:
-        return ci - 1, cj, False
-    return ci, cj - 1, False
 
 
 @numba.njit(cache=True, inline="always")
@@ -331,102 +379,291 @@ def _continuous_move(k, ax, ay, ist, fst, mint, walls):
     return (x != x_) or (y != y_)
 
 
+@numba.njit(cache=True, inline="always")
+def _continuous_step(k, ax, ay, ist, fst, mint, mflt, walls, rewards, term, trunc):
+    """One continuous step of agent ``k`` (§4.4, §4.5); True when its episode ended."""
+    collision = _continuous_move(k, ax, ay, ist, fst, mint, walls)
+    ni = int(fst[k, _X])
+    nj = int(fst[k, _Y])
+    ci = ist[k, _CI]
+    cj = ist[k, _CJ]
+    ppi = ist[k, _PI]
+    ppj = ist[k, _PJ]
+    m = ist[k, _MAZE]
+    tk = ist[k, _T]
+    reward = 0.0
+    if collision:
+        reward += _COLLISION
+        ist[k, _COLL] += 1
+    pi = ppi
+    pj = ppj
+    if ni != ci or nj != cj:
+        pi = ci
+        pj = cj
+    reward += -_DT_CONTINUOUS
+    success = ni == mint[m, _EI] and nj == mint[m, _EJ]
+    deadline = mflt[m, _DEADLINE]
+    if success or tk >= deadline:
+        reward += mflt[m, _FINISH]
+    if (ppi != pi or ppj != pj) and ppi == ni and ppj == nj:
+        reward += _BACKWARD
+        ist[k, _BACK] += 1
+    tk += 1
+    ist[k, _T] = tk
+    ist[k, _CI] = ni
+    ist[k, _CJ] = nj
+    ist[k, _PI] = pi
+    ist[k, _PJ] = pj
+    fst[k, _RET] += reward
+    rewards[k] = reward
+    failure = tk >= deadline
+    term[k] = success
+    trunc[k] = failure
+    return success or failure
+
+
+@numba.njit(cache=True, inline="always")
+def _record_end(k, count, ist, fst, mint, term, ep_int, ep_ret, ep_success):
+    """Write the ended episode of agent ``k`` at row ``count`` of the compact buffers."""
+    ep_int[_EP_AGENT, count] = k
+    ep_int[_EP_STEPS, count] = ist[k, _T]
+    ep_int[_EP_COLL, count] = ist[k, _COLL]
+    ep_int[_EP_BACK, count] = ist[k, _BACK]
+    ep_int[_EP_LEN, count] = mint[ist[k, _MAZE], _L]
+    ep_ret[count] = fst[k, _RET]
+    ep_success[count] = term[k]
+
+
+@numba.njit(cache=True, inline="always")
+def _copy_vector(dst, row, src, k):
+    for s in range(src.shape[1]):
+        dst[row, s] = src[k, s]
+
+
+@numba.njit(cache=True, inline="always")
+def _copy_image(dst, row, src, k):
+    for r in range(src.shape[1]):
+        for c in range(src.shape[2]):
+            dst[row, r, c] = src[k, r, c]
+
+
 # -----------------------------------------------------------------------------
-# Compiled kernels (one per robot kind)
+# Compiled kernels (per robot kind, serial and parallel)
+#
+# Each returns the number of episodes that ended, or a negative status code, in
+# which case no state was touched. The agents whose episode ended are listed in
+# ``ep_int[_EP_AGENT, :count]``; the end of their episodes (statistics, last
+# observation, reset) is handled after the loop over all agents, serially.
 
 
-@numba.njit(cache=True, parallel=True)
-def _step_discrete(
-    actions, ist, fst, mint, mflt, walls, dobs, auto_reset,
-    obs, rewards, term, trunc, ended, final_obs, ep_ret, ep_int,
+@numba.njit(cache=True, inline="always")
+def _list_ended(term, trunc, ep_int):
+    """List the agents whose episode ended (after a parallel loop); returns their number."""
+    count = 0
+    for k in range(term.shape[0]):
+        if term[k] or trunc[k]:
+            ep_int[_EP_AGENT, count] = k
+            count += 1
+    return count
+
+
+@numba.njit(cache=True, inline="always")
+def _end_discrete_episodes(
+    count, auto_reset, ist, fst, ended, mint, rows, obs, term,
+    ep_int, ep_ret, ep_success, final_obs,
 ):  # fmt: skip
-    for k in numba.prange(actions.shape[0]):
-        ni, nj, collision = _grid_move(k, actions[k], ist, mint, walls)
-        done = _account(k, collision, ni, nj, 1.0, ist, fst, mint, mflt, rewards, term, trunc)
-        _observe_discrete(k, obs, ist, mint, dobs)
-        ended[k] = done
-        if done:
-            _record_end(k, term[k], ist, fst, ep_ret, ep_int)
-            for s in range(obs.shape[1]):
-                final_obs[k, s] = obs[k, s]
-            if auto_reset:
-                _reset_agent(k, ist, fst, mint)
-                _observe_discrete(k, obs, ist, mint, dobs)
-
-
-@numba.njit(cache=True, parallel=True)
-def _step_hybrid(
-    actions, ist, fst, mint, mflt, walls, tiles, auto_reset,
-    obs, rewards, term, trunc, ended, final_obs, ep_ret, ep_int,
-):  # fmt: skip
-    v = obs.shape[1]
-    for k in numba.prange(actions.shape[0]):
-        ni, nj, collision = _grid_move(k, actions[k], ist, mint, walls)
-        done = _account(k, collision, ni, nj, 1.0, ist, fst, mint, mflt, rewards, term, trunc)
-        ended[k] = done
-        if done:
-            _record_end(k, term[k], ist, fst, ep_ret, ep_int)
-            _observe_tile(k, final_obs, ist, mint, tiles)
-            if auto_reset:
-                _reset_agent(k, ist, fst, mint)
-                _observe_tile(k, obs, ist, mint, tiles)
-            else:
-                for r in range(v):
-                    for c in range(v):
-                        obs[k, r, c] = final_obs[k, r, c]
+    """Record and restart (or mark as ended) the listed episodes of discrete robots."""
+    for i in range(count):
+        k = ep_int[_EP_AGENT, i]
+        _record_end(k, i, ist, fst, mint, term, ep_int, ep_ret, ep_success)
+        _copy_vector(final_obs, i, obs, k)
+        if auto_reset:
+            _reset_agent(k, ist, fst, mint)
+            _observe_discrete(k, obs, ist, rows)
         else:
-            _observe_tile(k, obs, ist, mint, tiles)
+            ended[k] = True
 
 
-@numba.njit(cache=True, parallel=True)
-def _step_continuous(
-    actions, ist, fst, mint, mflt, walls, canvas, canvas_off, auto_reset,
-    obs, rewards, term, trunc, ended, final_obs, ep_ret, ep_int,
+@numba.njit(cache=True, inline="always")
+def _end_hybrid_episodes(
+    count, auto_reset, ist, fst, ended, mint, tiles, obs, term,
+    ep_int, ep_ret, ep_success, final_obs,
 ):  # fmt: skip
-    v = obs.shape[1]
-    for k in numba.prange(actions.shape[0]):
-        collision = _continuous_move(k, actions[k, 0], actions[k, 1], ist, fst, mint, walls)
-        ni = int(fst[k, _X])
-        nj = int(fst[k, _Y])
-        done = _account(
-            k, collision, ni, nj, _DT_CONTINUOUS, ist, fst, mint, mflt, rewards, term, trunc
-        )
-        ended[k] = done
-        if done:
-            _record_end(k, term[k], ist, fst, ep_ret, ep_int)
-            _observe_window(k, final_obs, ist, fst, mint, canvas, canvas_off)
-            if auto_reset:
-                _reset_agent(k, ist, fst, mint)
-                _observe_window(k, obs, ist, fst, mint, canvas, canvas_off)
-            else:
-                for r in range(v):
-                    for c in range(v):
-                        obs[k, r, c] = final_obs[k, r, c]
+    """Record and restart (or mark as ended) the listed episodes of hybrid robots."""
+    for i in range(count):
+        k = ep_int[_EP_AGENT, i]
+        _record_end(k, i, ist, fst, mint, term, ep_int, ep_ret, ep_success)
+        _copy_image(final_obs, i, obs, k)
+        if auto_reset:
+            _reset_agent(k, ist, fst, mint)
+            _observe_tile(k, obs, ist, tiles)
         else:
+            ended[k] = True
+
+
+@numba.njit(cache=True, inline="always")
+def _end_continuous_episodes(
+    count, auto_reset, ist, fst, ended, mint, canvas, canvas_off, obs, term,
+    ep_int, ep_ret, ep_success, final_obs,
+):  # fmt: skip
+    """Record and restart (or mark as ended) the listed episodes of continuous robots."""
+    for i in range(count):
+        k = ep_int[_EP_AGENT, i]
+        _record_end(k, i, ist, fst, mint, term, ep_int, ep_ret, ep_success)
+        _copy_image(final_obs, i, obs, k)
+        if auto_reset:
+            _reset_agent(k, ist, fst, mint)
             _observe_window(k, obs, ist, fst, mint, canvas, canvas_off)
+        else:
+            ended[k] = True
+
+
+@_serial_kernel
+def _step_discrete(
+    actions, ist, fst, ended, mint, mflt, neighbours, rows, auto_reset,
+    obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
+):  # fmt: skip
+    status = _check_discrete(actions, ended, auto_reset)
+    if status < 0:
+        return status
+    count = 0
+    for k in range(actions.shape[0]):
+        done = _grid_step(k, actions[k], ist, fst, mint, mflt, neighbours, rewards, term, trunc)
+        _observe_discrete(k, obs, ist, rows)
+        ep_int[_EP_AGENT, count] = k  # kept only if the episode ended: no branch here
+        count += done
+    _end_discrete_episodes(
+        count, auto_reset, ist, fst, ended, mint, rows, obs, term,
+        ep_int, ep_ret, ep_success, final_obs,
+    )  # fmt: skip
+    return count
 
 
 @numba.njit(cache=True, parallel=True)
-def _reset_kernel(agents, ist, fst, mint):
-    for n in numba.prange(agents.shape[0]):
+def _step_discrete_parallel(
+    actions, ist, fst, ended, mint, mflt, neighbours, rows, auto_reset,
+    obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
+):  # fmt: skip
+    status = _check_discrete(actions, ended, auto_reset)
+    if status < 0:
+        return status
+    for k in numba.prange(actions.shape[0]):
+        _grid_step(k, actions[k], ist, fst, mint, mflt, neighbours, rewards, term, trunc)
+        _observe_discrete(k, obs, ist, rows)
+    count = _list_ended(term, trunc, ep_int)
+    _end_discrete_episodes(
+        count, auto_reset, ist, fst, ended, mint, rows, obs, term,
+        ep_int, ep_ret, ep_success, final_obs,
+    )  # fmt: skip
+    return count
+
+
+@_serial_kernel
+def _step_hybrid(
+    actions, ist, fst, ended, mint, mflt, neighbours, tiles, auto_reset,
+    obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
+):  # fmt: skip
+    status = _check_discrete(actions, ended, auto_reset)
+    if status < 0:
+        return status
+    count = 0
+    for k in range(actions.shape[0]):
+        done = _grid_step(k, actions[k], ist, fst, mint, mflt, neighbours, rewards, term, trunc)
+        _observe_tile(k, obs, ist, tiles)
+        ep_int[_EP_AGENT, count] = k
+        count += done
+    _end_hybrid_episodes(
+        count, auto_reset, ist, fst, ended, mint, tiles, obs, term,
+        ep_int, ep_ret, ep_success, final_obs,
+    )  # fmt: skip
+    return count
+
+
+@numba.njit(cache=True, parallel=True)
+def _step_hybrid_parallel(
+    actions, ist, fst, ended, mint, mflt, neighbours, tiles, auto_reset,
+    obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
+):  # fmt: skip
+    status = _check_discrete(actions, ended, auto_reset)
+    if status < 0:
+        return status
+    for k in numba.prange(actions.shape[0]):
+        _grid_step(k, actions[k], ist, fst, mint, mflt, neighbours, rewards, term, trunc)
+        _observe_tile(k, obs, ist, tiles)
+    count = _list_ended(term, trunc, ep_int)
+    _end_hybrid_episodes(
+        count, auto_reset, ist, fst, ended, mint, tiles, obs, term,
+        ep_int, ep_ret, ep_success, final_obs,
+    )  # fmt: skip
+    return count
+
+
+@_serial_kernel
+def _step_continuous(
+    actions, ist, fst, ended, mint, mflt, walls, canvas, canvas_off, auto_reset,
+    obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
+):  # fmt: skip
+    status = _check_ended(ended, auto_reset)
+    if status < 0:
+        return status
+    count = 0
+    for k in range(actions.shape[0]):
+        done = _continuous_step(
+            k, actions[k, 0], actions[k, 1], ist, fst, mint, mflt, walls, rewards, term, trunc
+        )
+        _observe_window(k, obs, ist, fst, mint, canvas, canvas_off)
+        ep_int[_EP_AGENT, count] = k
+        count += done
+    _end_continuous_episodes(
+        count, auto_reset, ist, fst, ended, mint, canvas, canvas_off, obs, term,
+        ep_int, ep_ret, ep_success, final_obs,
+    )  # fmt: skip
+    return count
+
+
+@numba.njit(cache=True, parallel=True)
+def _step_continuous_parallel(
+    actions, ist, fst, ended, mint, mflt, walls, canvas, canvas_off, auto_reset,
+    obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
+):  # fmt: skip
+    status = _check_ended(ended, auto_reset)
+    if status < 0:
+        return status
+    for k in numba.prange(actions.shape[0]):
+        _continuous_step(
+            k, actions[k, 0], actions[k, 1], ist, fst, mint, mflt, walls, rewards, term, trunc
+        )
+        _observe_window(k, obs, ist, fst, mint, canvas, canvas_off)
+    count = _list_ended(term, trunc, ep_int)
+    _end_continuous_episodes(
+        count, auto_reset, ist, fst, ended, mint, canvas, canvas_off, obs, term,
+        ep_int, ep_ret, ep_success, final_obs,
+    )  # fmt: skip
+    return count
+
+
+@_serial_kernel
+def _reset_kernel(agents, ist, fst, ended, mint):
+    for n in range(agents.shape[0]):
         _reset_agent(agents[n], ist, fst, mint)
+        ended[agents[n]] = False
 
 
-@numba.njit(cache=True, parallel=True)
-def _observe_all_discrete(ist, mint, dobs, out):
-    for k in numba.prange(out.shape[0]):
-        _observe_discrete(k, out, ist, mint, dobs)
+@_serial_kernel
+def _observe_all_discrete(ist, rows, out):
+    for k in range(out.shape[0]):
+        _observe_discrete(k, out, ist, rows)
 
 
-@numba.njit(cache=True, parallel=True)
-def _observe_all_hybrid(ist, mint, tiles, out):
-    for k in numba.prange(out.shape[0]):
-        _observe_tile(k, out, ist, mint, tiles)
+@_serial_kernel
+def _observe_all_hybrid(ist, tiles, out):
+    for k in range(out.shape[0]):
+        _observe_tile(k, out, ist, tiles)
 
 
-@numba.njit(cache=True, parallel=True)
+@_serial_kernel
 def _observe_all_continuous(ist, fst, mint, canvas, canvas_off, out):
-    for k in numba.prange(out.shape[0]):
+    for k in range(out.shape[0]):
         _observe_window(k, out, ist, fst, mint, canvas, canvas_off)
 
 
@@ -510,6 +747,36 @@ class StepResult:
         return self.terminated | self.truncated
 
 
+def _threads_pay_off(work: int) -> bool:
+    """Whether the parallel kernels are the better default for ``work`` per step.
+
+    They need enough work to amortise a thread start-up and barrier per step,
+    and idle cores: while other processes keep the cores busy (by the 1-minute
+    load average, which counts this process too), a worker thread waits for a
+    time slice at every barrier.
+    """
+    if numba.get_num_threads() < 2 or work < _PARALLEL_MIN_WORK:
+        return False
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):  # no load average on this platform
+        return True
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return load < (cores or 1) - 0.5
+
+
+def _build(cls: type[_Dataclass], **fields: object) -> _Dataclass:
+    """An instance of the frozen dataclass ``cls`` with exactly its ``fields``.
+
+    The generated ``__init__`` of a frozen dataclass sets each field through
+    ``object.__setattr__``, which costs a few microseconds per engine step;
+    filling the instance dictionary directly gives the same object.
+    """
+    instance = object.__new__(cls)
+    instance.__dict__.update(fields)
+    return instance
+
+
 class BatchEngine:
     """``n_agents`` agents of one robot kind in a list of mazes, stepped together.
 
@@ -518,6 +785,11 @@ class BatchEngine:
     continuous robots take accelerations, float (n, 2), not clipped (as in the
     reference). Observations are float32 (n, 8) for discrete robots and uint8
     (n, v, v) images for hybrid and continuous ones.
+
+    ``parallel`` chooses the multi-threaded kernels; by default (``None``) they
+    run batches large enough for threads to pay off when numba has several
+    threads and the machine idle cores (see the module docstring). Both kernel
+    families give identical results.
     """
 
     def __init__(
@@ -529,6 +801,7 @@ class BatchEngine:
         assignment: np.ndarray | None = None,
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         auto_reset: bool = True,
+        parallel: bool | None = None,
     ) -> None:
         if n_agents < 1:
             raise ValueError(f"n_agents must be positive, got {n_agents}")
@@ -552,18 +825,38 @@ class BatchEngine:
                     t.end_ij[:, 0],
                     t.end_ij[:, 1],
                     t.path_length,
+                    t.start,
+                    t.end,
                 ],
                 axis=1,
             ).astype(np.int64)
         )
         self._mflt = np.ascontiguousarray(np.stack([t.deadline, t.finish], axis=1))
         n = self.n_agents
-        self._ist = np.zeros((n, _N_ISTATE), dtype=np.int64)
+        self._ist = np.zeros((n, _N_ISTATE), dtype=np.int32)
         self._fst = np.zeros((n, _N_FSTATE), dtype=np.float64)
         self._ended = np.zeros(n, dtype=np.bool_)
+        self._obs_shape = (n, *self.observation_shape)
+        self._action_shape = (n,)
+        self._obs_dtype = self.observation_dtype
+        # compact buffers of the episodes that end in one step (copied out by step)
+        self._ep_int = np.zeros((_N_EP_INT, n), dtype=np.int64)
         self._ep_ret = np.zeros(n, dtype=np.float64)
-        self._ep_int = np.zeros((n, 4), dtype=np.int64)
-        self._final = np.zeros((n, *self.observation_shape), dtype=self.observation_dtype)
+        self._ep_success = np.zeros(n, dtype=np.bool_)
+        self._final = np.zeros(self._obs_shape, dtype=self._obs_dtype)
+        if parallel is None:
+            parallel = _threads_pay_off(n * _WORK_PER_AGENT[self.kind])
+        self.parallel = bool(parallel)
+        if self.kind == "discrete":
+            kernel = _step_discrete_parallel if self.parallel else _step_discrete
+            self._tables_args = (t.neighbours, np.ascontiguousarray(t.discrete_obs[:, 0]))
+        elif self.kind == "hybrid":
+            kernel = _step_hybrid_parallel if self.parallel else _step_hybrid
+            self._tables_args = (t.neighbours, t.tiles)
+        else:
+            kernel = _step_continuous_parallel if self.parallel else _step_continuous
+            self._tables_args = (t.walls, t.canvas, t.canvas_offset)
+        self._kernel = kernel
         if assignment is None:
             assignment = np.arange(n) % len(self.mazes)
         self._ist[:, _MAZE] = self._check_assignment(assignment, n)
@@ -585,14 +878,24 @@ class BatchEngine:
     @property
     def assignment(self) -> np.ndarray:
         """Maze index of every agent (a copy)."""
-        return self._ist[:, _MAZE].copy()
+        return self._ist[:, _MAZE].astype(np.int64)
+
+    @property
+    def cells(self) -> np.ndarray:
+        """int64 (n, 2): every robot's cell ``(i, j)``."""
+        if self.kind == "continuous":
+            return self._ist[:, [_CI, _CJ]].astype(np.int64)
+        maze = self._ist[:, _MAZE]
+        local = self._ist[:, _CELL].astype(np.int64) - self._mint[maze, _OFF]
+        height = self._mint[maze, _H]
+        return np.stack([local // height, local % height], axis=1)
 
     @property
     def positions(self) -> np.ndarray:
         """float64 (n, 2): every robot's position (cell centre + offset in continuous mode)."""
         if self.kind == "continuous":
             return self._fst[:, [_X, _Y]].copy()
-        return self._ist[:, [_CI, _CJ]].astype(np.float64) + 0.5
+        return self.cells.astype(np.float64) + 0.5
 
     @property
     def velocities(self) -> np.ndarray:
@@ -600,14 +903,9 @@ class BatchEngine:
         return self._fst[:, [_VX, _VY]].copy()
 
     @property
-    def cells(self) -> np.ndarray:
-        """int64 (n, 2): every robot's cell ``(i, j)``."""
-        return self._ist[:, [_CI, _CJ]].copy()
-
-    @property
     def timesteps(self) -> np.ndarray:
         """int64 (n,): steps taken in the current episode."""
-        return self._ist[:, _T].copy()
+        return self._ist[:, _T].astype(np.int64)
 
     @property
     def cumulative_rewards(self) -> np.ndarray:
@@ -622,7 +920,7 @@ class BatchEngine:
             raise ValueError(f"assignment must be {n} integers, got shape {a.shape} {a.dtype}")
         if n and (a.min() < 0 or a.max() >= len(self.mazes)):
             raise ValueError(f"maze indices must be in [0, {len(self.mazes)})")
-        return a.astype(np.int64)
+        return a.astype(np.int32)
 
     def reset(
         self, agents: np.ndarray | None = None, assignment: np.ndarray | None = None
@@ -642,18 +940,17 @@ class BatchEngine:
                 raise IndexError("agent index out of range")
         if assignment is not None:
             self._ist[agents, _MAZE] = self._check_assignment(assignment, agents.shape[0])
-        _reset_kernel(agents, self._ist, self._fst, self._mint)
-        self._ended[agents] = False
+        _reset_kernel(agents, self._ist, self._fst, self._ended, self._mint)
         return self.observe()
 
     def observe(self) -> np.ndarray:
         """The current observation of every agent (a fresh array)."""
-        out = np.empty((self.n_agents, *self.observation_shape), dtype=self.observation_dtype)
+        out = np.empty(self._obs_shape, dtype=self._obs_dtype)
         t = self.tables
         if self.kind == "discrete":
-            _observe_all_discrete(self._ist, self._mint, t.discrete_obs, out)
+            _observe_all_discrete(self._ist, self._tables_args[1], out)
         elif self.kind == "hybrid":
-            _observe_all_hybrid(self._ist, self._mint, t.tiles, out)
+            _observe_all_hybrid(self._ist, t.tiles, out)
         else:
             _observe_all_continuous(
                 self._ist, self._fst, self._mint, t.canvas, t.canvas_offset, out
@@ -661,69 +958,68 @@ class BatchEngine:
         return out
 
     def step(self, actions: np.ndarray) -> StepResult:
-        """Apply one action per agent; see :class:`StepResult`."""
+        """Apply one action per agent; see :class:`StepResult`.
+
+        Raises ``ValueError`` for actions of the wrong shape, type or range, and
+        :class:`EpisodeEndedError` for an agent whose episode ended (without
+        auto-reset); the state is then unchanged.
+        """
         n = self.n_agents
-        if not self.auto_reset and self._ended.any():
-            raise EpisodeEndedError(
-                f"agents {np.flatnonzero(self._ended)[:10].tolist()} ended their episode:"
-                " reset them before stepping"
-            )
-        t = self.tables
-        obs = np.empty((n, *self.observation_shape), dtype=self.observation_dtype)
-        rewards = np.empty(n, dtype=np.float64)
-        term = np.empty(n, dtype=np.bool_)
-        trunc = np.empty(n, dtype=np.bool_)
-        ended = self._ended
         if self.kind == "continuous":
             a = np.asarray(actions, dtype=np.float64)
             if a.shape != (n, 2):
                 raise ValueError(f"continuous actions must have shape ({n}, 2), got {a.shape}")
-            _step_continuous(
-                a, self._ist, self._fst, self._mint, self._mflt, t.walls,
-                t.canvas, t.canvas_offset, self.auto_reset,
-                obs, rewards, term, trunc, ended, self._final, self._ep_ret, self._ep_int,
-            )  # fmt: skip
         else:
             a = np.asarray(actions)
-            if a.shape != (n,) or not np.issubdtype(a.dtype, np.integer):
-                raise ValueError(f"discrete actions must be {n} integers, got {a.shape} {a.dtype}")
-            if a.dtype != np.int64 and a.dtype != np.int8:
+            if a.dtype != _INT64 or a.shape != self._action_shape:
+                if a.shape != self._action_shape or not np.issubdtype(a.dtype, np.integer):
+                    raise ValueError(
+                        f"discrete actions must be {n} integers, got {a.shape} {a.dtype}"
+                    )
                 a = a.astype(np.int64)
-            if a.min() < 0 or a.max() > 3:
-                raise ValueError("discrete actions must be in 0..3 (E, N, W, S)")
-            kernel, table = (
-                (_step_discrete, t.discrete_obs)
-                if self.kind == "discrete"
-                else (_step_hybrid, t.tiles)
-            )
-            kernel(
-                a, self._ist, self._fst, self._mint, self._mflt, t.walls, table, self.auto_reset,
-                obs, rewards, term, trunc, ended, self._final, self._ep_ret, self._ep_int,
-            )  # fmt: skip
-        if self.auto_reset:
-            ended_idx = np.flatnonzero(ended)
-            ended[:] = False
-        else:
-            ended_idx = np.flatnonzero(ended)
-        return StepResult(
+        obs = np.empty(self._obs_shape, dtype=self._obs_dtype)
+        rewards = np.empty(n, dtype=np.float64)
+        term = np.empty(n, dtype=np.bool_)
+        trunc = np.empty(n, dtype=np.bool_)
+        count = self._kernel(
+            a, self._ist, self._fst, self._ended, self._mint, self._mflt, *self._tables_args,
+            self.auto_reset,
+            obs, rewards, term, trunc, self._ep_int, self._ep_ret, self._ep_success, self._final,
+        )  # fmt: skip
+        if count < 0:
+            self._refuse(count, a)
+        ints = self._ep_int[:, :count].copy()
+        episodes = _build(
+            EpisodeStatistics,
+            agents=ints[_EP_AGENT],
+            cumulative_reward=self._ep_ret[:count].copy(),
+            steps=ints[_EP_STEPS],
+            collisions=ints[_EP_COLL],
+            backsteps=ints[_EP_BACK],
+            success=self._ep_success[:count].copy(),
+            path_length=ints[_EP_LEN],
+            dt=self.dt,
+            deadline_factor=self.deadline_factor,
+        )
+        return _build(
+            StepResult,
             observations=obs,
             rewards=rewards,
             terminated=term,
             truncated=trunc,
-            final_observations=self._final[ended_idx],
-            episodes=self._episodes(ended_idx),
+            final_observations=self._final[:count].copy(),
+            episodes=episodes,
         )
 
-    def _episodes(self, idx: np.ndarray) -> EpisodeStatistics:
-        ep = self._ep_int[idx]
-        return EpisodeStatistics(
-            agents=idx,
-            cumulative_reward=self._ep_ret[idx],
-            steps=ep[:, _EP_STEPS],
-            collisions=ep[:, _EP_COLL],
-            backsteps=ep[:, _EP_BACK],
-            success=ep[:, _EP_SUCC].astype(np.bool_),
-            path_length=self.tables.path_length[self._ist[idx, _MAZE]],
-            dt=self.dt,
-            deadline_factor=self.deadline_factor,
+    def _refuse(self, status: int, actions: np.ndarray) -> NoReturn:
+        """Raise the error a kernel reported (it changed no state)."""
+        if status == _BAD_ACTION:
+            bad = np.flatnonzero((actions < 0) | (actions > 3))
+            raise ValueError(
+                "discrete actions must be in 0..3 (E, N, W, S): agents"
+                f" {bad[:10].tolist()} got {actions[bad[:10]].tolist()}"
+            )
+        raise EpisodeEndedError(
+            f"agents {np.flatnonzero(self._ended)[:10].tolist()} ended their episode:"
+            " reset them before stepping"
         )

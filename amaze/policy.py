@@ -202,4 +202,3 @@ def record_episode(
                 ),
                 trajectory,
             )
-

@@ -6,6 +6,9 @@ being global cell ``cell_offset[m] + i * height[m] + j`` (the order of
 ``Maze.walls``). Everything an agent perceives is precomputed once here, so
 that a step of the engine is a few table look-ups:
 
+* moves: the global cell reached through each side of every cell, -1 behind a
+  wall (``neighbours``), so that a discrete move is one look-up;
+
 * discrete robots: the 8-float observation of every (cell, arrival side), the
   arrival side being 0 (none, at the start) or ``1 + d`` for side ``d`` (E, N,
   W, S) leading back to the previous cell;
@@ -13,6 +16,10 @@ that a step of the engine is a few table look-ups:
   *without* the origin marker (the marker depends on the arrival side and is
   drawn at observation time), and for each maze one zero-padded canvas made of
   those tiles (row 0 = north), so that the continuous sub-cell window is a slice.
+
+The single-agent environment (:mod:`amaze.gym_env`) uses the per-maze pieces
+directly: :func:`neighbour_cells` for moves, :func:`discrete_observations` and
+:func:`cell_tiles` (with :func:`marker_pixel`) for observations.
 
 Gray levels are ``k = round(255 * x)`` of the reference's float images: walls
 and the origin marker are 255, sign pixels are the sign image's levels.
@@ -46,7 +53,8 @@ class MazeTables:
     ``(i, j)``), ``path_length`` (the paper's ``l``), ``deadline`` (in steps, a
     float as in the reference), ``finish`` (the ``2l - 1`` bonus), ``dt``.
     Per cell (length ``n_cells``): ``walls`` (bit ``d`` set when side ``d`` has
-    a wall). Observation tables: ``discrete_obs`` float32 ``(n_cells, 5, 8)``
+    a wall) and ``neighbours`` int32 ``(n_cells, 4)`` (the global cell through
+    side ``d``, -1 behind a wall). Observation tables: ``discrete_obs`` float32 ``(n_cells, 5, 8)``
     for discrete robots; ``tiles`` uint8 ``(n_cells, v, v)``, ``canvas`` (flat
     uint8) with ``canvas_offset`` per maze for image robots (else empty).
     """
@@ -65,6 +73,7 @@ class MazeTables:
     deadline: np.ndarray
     finish: np.ndarray
     walls: np.ndarray
+    neighbours: np.ndarray
     discrete_obs: np.ndarray
     tiles: np.ndarray
     canvas: np.ndarray
@@ -88,6 +97,31 @@ def wall_bits(maze: Maze) -> np.ndarray:
     """uint8 ``(width * height,)``: bit ``d`` set when the cell has a wall on side ``d``."""
     walls = maze.walls.reshape(-1, 4).astype(np.uint8)
     return (walls * np.array([1, 2, 4, 8], dtype=np.uint8)).sum(axis=1).astype(np.uint8)
+
+
+def neighbour_cells(maze: Maze) -> np.ndarray:
+    """int64 ``(width * height, 4)``: the cell reached from each cell through side ``d``.
+
+    Cells are numbered ``i * height + j`` (the order of :func:`wall_bits`); the
+    entry is -1 where side ``d`` has a wall (or is the maze border), so that a
+    discrete move is one look-up.
+    """
+    w, h = maze.width, maze.height
+    index = np.arange(w * h, dtype=np.int64).reshape(w, h)
+    shifts = np.array([h, 1, -h, -1], dtype=np.int64)  # E, N, W, S
+    target = index[:, :, None] + shifts
+    blocked = maze.walls.astype(bool).copy()
+    blocked[-1, :, 0] = True
+    blocked[:, -1, 1] = True
+    blocked[0, :, 2] = True
+    blocked[:, 0, 3] = True
+    return np.where(blocked, -1, target).reshape(w * h, 4)
+
+
+def marker_pixel(side: int, vision: int) -> tuple[int, int]:
+    """Row and column of the origin marker drawn on ``side`` (0..3) of a ``v x v`` image."""
+    half = vision // 2
+    return ((half, vision - 1), (0, half), (half, 0), (vision - 1, half))[side]
 
 
 def discrete_observations(maze: Maze) -> np.ndarray:
@@ -173,6 +207,12 @@ def compile_mazes(
     deadline = np.array([s.deadline for s in schemes], dtype=np.float64)
     finish = np.array([s.finish for s in schemes], dtype=np.float64)
     walls = np.concatenate([wall_bits(m) for m in mazes])
+    neighbours = np.concatenate(
+        [
+            np.where(local < 0, -1, local + offset)
+            for local, offset in zip((neighbour_cells(m) for m in mazes), cell_offset, strict=True)
+        ]
+    ).astype(np.int32)
 
     empty_u8 = np.zeros(0, dtype=np.uint8)
     if robot.discrete_inputs:
@@ -207,6 +247,7 @@ def compile_mazes(
         deadline=deadline,
         finish=finish,
         walls=walls,
+        neighbours=np.ascontiguousarray(neighbours),
         discrete_obs=np.ascontiguousarray(discrete_obs),
         tiles=tiles,
         canvas=canvas,

@@ -6,7 +6,10 @@ complex 20x20 mazes ``M<seed>_20x20_C1_l.25_L.25_t.5_T.5``; each repeat times
 printed. Goals on a 2-core machine: discrete >= 50 M, hybrid (H15) >= 2 M,
 continuous (CC15) >= 1 M agent-steps/s.
 
-Usage: ``python benchmarks/bench_engine.py [--agents 4096] [--modes DD H15 CC15]``
+By default the engine picks its serial or parallel kernels (``BatchEngine``'s
+``parallel=None``); ``--parallel on`` / ``off`` forces one family.
+
+Usage: ``python benchmarks/bench_engine.py [--agents 4096] [--modes DD H15 CC15] [--parallel on]``
 """
 
 from __future__ import annotations
@@ -23,10 +26,12 @@ from amaze.engine import BatchEngine
 MAZE = "M{seed}_20x20_C1_l.25_L.25_t.5_T.5"
 
 
-def bench(robot: str, n_agents: int, n_mazes: int, steps: int, repeats: int) -> list[float]:
-    """Agent-steps per second of each repeat for ``robot``."""
+def bench(
+    robot: str, n_agents: int, n_mazes: int, steps: int, repeats: int, parallel: bool | None = None
+) -> tuple[list[float], bool]:
+    """Agent-steps per second of each repeat for ``robot``, and whether it ran in parallel."""
     mazes = [MAZE.format(seed=s) for s in range(n_mazes)]
-    engine = BatchEngine(mazes, robot, n_agents)
+    engine = BatchEngine(mazes, robot, n_agents, parallel=parallel)
     rng = np.random.default_rng(0)
     if robot.startswith("C"):
         actions = rng.uniform(-1, 1, size=(steps, n_agents, 2))
@@ -41,7 +46,7 @@ def bench(robot: str, n_agents: int, n_mazes: int, steps: int, repeats: int) -> 
             engine.step(actions[t])
         elapsed = time.perf_counter() - start
         rates.append(steps * n_agents / elapsed)
-    return rates
+    return rates, engine.parallel
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -51,16 +56,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--steps", type=int, default=0, help="steps per repeat (0: per mode)")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--modes", nargs="+", default=["DD", "H15", "CC15"])
+    parser.add_argument("--parallel", choices=["auto", "on", "off"], default="auto")
     args = parser.parse_args(argv)
+    parallel = {"auto": None, "on": True, "off": False}[args.parallel]
     print(f"numba threads: {numba.get_num_threads()}, agents: {args.agents}")
     default_steps = {"D": 500, "H": 100, "C": 100}
     for robot in args.modes:
         steps = args.steps or default_steps[robot[0]]
-        rates = bench(robot, args.agents, args.mazes, steps, args.repeats)
+        rates, used_parallel = bench(robot, args.agents, args.mazes, steps, args.repeats, parallel)
         print(
             f"{robot:>5}: median {statistics.median(rates) / 1e6:8.2f} M agent-steps/s"
             f"  (min {min(rates) / 1e6:.2f}, max {max(rates) / 1e6:.2f};"
-            f" {args.repeats} x {steps} steps)"
+            f" {args.repeats} x {steps} steps, {'parallel' if used_parallel else 'serial'})"
         )
 
 

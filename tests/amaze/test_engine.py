@@ -8,9 +8,12 @@ amaze-benchmarker 1.0 (``CONTINUOUS_DIGESTS``, actions from ``_lcg_actions``).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import os
 from typing import Any
 
+import numba
 import numpy as np
 import pytest
 
@@ -328,12 +331,131 @@ def test_fresh_arrays() -> None:
 
 def test_invalid_actions() -> None:
     engine = BatchEngine(["M4_5x5_U"], "DD", 2)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"0\.\.3.*agents \[1\] got \[4\]"):
         engine.step(np.array([0, 4]))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"agents \[0\] got \[-1\]"):
+        engine.step(np.array([-1, 2], dtype=np.int32))
+    with pytest.raises(ValueError, match="integers"):
         engine.step(np.array([0.0, 1.0]))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="integers"):
+        engine.step(np.array([True, False]))
+    with pytest.raises(ValueError, match="2 integers"):
         engine.step(np.array([0]))
     continuous = BatchEngine(["M4_5x5_U"], "CC", 2)
     with pytest.raises(ValueError):
         continuous.step(np.zeros(2))
+
+
+@pytest.mark.parametrize("robot", ["DD", "H9"])
+@pytest.mark.parametrize("parallel", [False, True])
+def test_refused_steps_change_nothing(robot: str, parallel: bool) -> None:
+    """Actions are validated before any agent moves: a refused step leaves no trace."""
+    actions = _random_actions(robot, 60, 5, seed=3)
+    checked = BatchEngine(BATCH_MAZES, robot, 5, parallel=parallel)
+    plain = BatchEngine(BATCH_MAZES, robot, 5, parallel=parallel)
+    for t in range(actions.shape[0]):
+        bad = actions[t].copy()
+        bad[(t % 4) + 1] = 4 + t % 3  # agents before the bad one would move first
+        with pytest.raises(ValueError, match=r"0\.\.3"):
+            checked.step(bad)
+        a, b = checked.step(actions[t]), plain.step(actions[t])
+        np.testing.assert_array_equal(a.observations, b.observations)
+        np.testing.assert_array_equal(a.rewards, b.rewards)
+    np.testing.assert_array_equal(checked.cells, plain.cells)
+    np.testing.assert_array_equal(checked.cumulative_rewards, plain.cumulative_rewards)
+
+
+def test_integer_action_types() -> None:
+    engine = BatchEngine([SIGNED], "DD", 4)
+    reference = BatchEngine([SIGNED], "DD", 4)
+    for dtype in (np.int8, np.uint8, np.int32, np.uint64, np.int64):
+        actions = np.array([0, 1, 2, 3], dtype=dtype)
+        result = engine.step(actions)
+        expected = reference.step([0, 1, 2, 3])
+        np.testing.assert_array_equal(result.observations, expected.observations)
+    strided = np.arange(8, dtype=np.int64)[::2] % 4  # a non-contiguous view
+    np.testing.assert_array_equal(
+        engine.step(strided).observations, reference.step(strided.copy()).observations
+    )
+
+
+def test_stepping_an_ended_agent_names_it() -> None:
+    maze = Maze.from_string("M4_5x5_U")
+    bump = int(np.flatnonzero(maze.walls[maze.start])[0])
+    engine = BatchEngine([maze], "DD", 3, auto_reset=False)
+    for _ in range(4 * maze.path_length - 1):
+        engine.step(np.array([bump, bump, bump]))
+    engine.reset(np.array([1]))
+    last = engine.step(np.array([bump, bump, bump]))
+    assert last.truncated.tolist() == [True, False, True]
+    assert last.episodes.agents.tolist() == [0, 2]
+    steps = engine.timesteps.copy()
+    with pytest.raises(EpisodeEndedError, match=r"agents \[0, 2\]"):
+        engine.step(np.array([bump, bump, bump]))
+    np.testing.assert_array_equal(engine.timesteps, steps)  # agent 1 did not move either
+    engine.reset(np.array([0, 2]))
+    assert engine.step(np.array([bump, bump, bump])).rewards.tolist() == [-1.2] * 3
+
+
+def test_results_are_ordinary_frozen_dataclasses() -> None:
+    engine = BatchEngine(["M4_5x5_U"], "DD", 2)
+    result = engine.step(np.array([0, 1]))
+    fields = {f.name for f in dataclasses.fields(result)}
+    assert fields == set(vars(result))
+    assert {f.name for f in dataclasses.fields(result.episodes)} == set(vars(result.episodes))
+    assert result == dataclasses.replace(result)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        result.rewards = None  # type: ignore[misc]
+    assert len(result.episodes) == 0 and result.final_observations.shape == (0, 8)
+
+
+@pytest.mark.parametrize("robot", ["DD", "H11", "CC11"])
+@pytest.mark.parametrize("auto_reset", [True, False])
+def test_parallel_kernels_match_serial(robot: str, auto_reset: bool) -> None:
+    """Both kernel families give identical results, episode ends and resets included."""
+    n_agents, steps = 12, 400 if robot != "CC11" else 250
+    assignment = np.arange(n_agents) % len(BATCH_MAZES)
+    engines = [
+        BatchEngine(
+            BATCH_MAZES,
+            robot,
+            n_agents,
+            assignment=assignment,
+            auto_reset=auto_reset,
+            deadline_factor=1.0,
+            parallel=parallel,
+        )
+        for parallel in (False, True)
+    ]
+    assert [e.parallel for e in engines] == [False, True]
+    actions = _random_actions(robot, steps, n_agents, seed=5)
+    n_episodes = 0
+    for t in range(steps):
+        serial, parallel = (e.step(actions[t]) for e in engines)
+        for name in ("observations", "rewards", "terminated", "truncated", "final_observations"):
+            np.testing.assert_array_equal(getattr(serial, name), getattr(parallel, name), name)
+        for f in dataclasses.fields(serial.episodes):
+            a, b = getattr(serial.episodes, f.name), getattr(parallel.episodes, f.name)
+            np.testing.assert_array_equal(a, b, f.name)
+        n_episodes += len(serial.episodes)
+        np.testing.assert_array_equal(engines[0].positions, engines[1].positions)
+        if not auto_reset and len(serial.episodes):
+            for engine in engines:
+                engine.reset(serial.episodes.agents)
+    assert n_episodes > 0
+
+
+def test_parallel_kernels_are_chosen_for_large_batches_on_idle_cores(monkeypatch) -> None:
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(os, "getloadavg", lambda: (0.9, 0.9, 0.9))  # this process alone
+    assert BatchEngine(["M4_5x5_U"], "DD", 4096).parallel
+    assert BatchEngine(["M4_5x5_U"], "CC", 256).parallel
+    assert not BatchEngine(["M4_5x5_U"], "DD", 1024).parallel  # too little work
+    assert not BatchEngine(["M4_5x5_U"], "DD", 4096, parallel=False).parallel
+    monkeypatch.setattr(os, "getloadavg", lambda: (2.7, 2.5, 2.0))  # cores already busy
+    assert not BatchEngine(["M4_5x5_U"], "DD", 4096).parallel
+    assert BatchEngine(["M4_5x5_U"], "DD", 4, parallel=True).parallel
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 1)
+    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    assert not BatchEngine(["M4_5x5_U"], "CC", 4096).parallel

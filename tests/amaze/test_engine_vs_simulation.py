@@ -3,7 +3,8 @@
 Each agent of one engine plays its own maze (mazes of different sizes and
 classes in one batch); a Simulation per agent replays the same actions,
 restarting when the engine auto-resets. Observations, rewards, terminations,
-truncations and positions must be identical, in all three robot modes.
+truncations and positions must be identical, in all three robot modes and with
+both the serial and the parallel kernels.
 """
 
 from __future__ import annotations
@@ -41,11 +42,12 @@ def random_actions(robot: str, rng: np.random.Generator, n: int) -> np.ndarray:
     return np.stack([np.cos(angles), np.sin(angles)], axis=1) * rng.uniform(0.3, 1.0, (n, 1))
 
 
+@pytest.mark.parametrize("parallel", [False, True])
 @pytest.mark.parametrize(("robot", "steps"), [("DD", 400), ("H11", 300), ("CC11", 1500)])
-def test_engine_matches_simulation(robot, steps):
+def test_engine_matches_simulation(robot, steps, parallel):
     mazes = [Maze.from_string(text) for text in MAZES]
     rng = np.random.default_rng(42)
-    engine = BatchEngine(mazes, robot, len(mazes), deadline_factor=2)
+    engine = BatchEngine(mazes, robot, len(mazes), deadline_factor=2, parallel=parallel)
     simulations = [Simulation(maze, robot, deadline_factor=2) for maze in mazes]
     observations = engine.reset()
     episodes_ended = 0

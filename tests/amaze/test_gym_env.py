@@ -8,7 +8,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import amaze  # noqa: F401  (registers AMaze-v0)
+from amaze.directions import direction_between
+from amaze.errors import AmazeError, EpisodeEndedError
 from amaze.gym_env import MazeEnv
+from amaze.simulation import Simulation
 
 from .conftest import load_reference
 
@@ -107,3 +110,124 @@ def test_bad_arguments():
         gymnasium.make("AMaze-v0", maze="M4_5x5", robot="H10")
     with pytest.raises(ValueError, match="render_mode"):
         MazeEnv(maze="M4_5x5", render_mode="video")
+
+
+# -----------------------------------------------------------------------------
+# Discrete-action robots run on tables: same episodes as the readable Simulation
+
+EQUIVALENCE_MAZES = [
+    "M0_10x10_C1",
+    "M8_20x20_C1_l.25_L.25_t.5_T.5",
+    "M5_12x8_SE_C1_l.3_L.5_t.5_T.25",
+    "M6_9x7_NW_C1_l.4_L.25_t.5_T.5",
+    "M6_8x8_NW_R_C1_t1_T.5",
+    "M3_6x9_NE_C1_Cpoint-.5_l.4_L.25_Lwarning-.3",
+    "M4_10x10_U",
+    "M16_5x10_U",
+]
+
+
+def simulation_info(sim: Simulation) -> dict:
+    """What the environment's info must hold, read from a Simulation."""
+    info = {
+        "maze": sim.maze.to_string(),
+        "time": sim.timestep,
+        "len": sim.maze.path_length,
+        "steps": sim.stats.steps,
+        "collisions": sim.stats.collisions,
+        "backsteps": sim.stats.backsteps,
+        "success": sim.success(),
+    }
+    if sim.done():
+        info["pretty_reward"] = sim.pretty_reward()
+        info["paper_reward"] = sim.paper_reward()
+    return info
+
+
+def simulation_observation(sim: Simulation) -> np.ndarray:
+    obs = sim.observe()
+    return obs if sim.robot.discrete_inputs else np.rint(obs * 255).astype(np.uint8)[None]
+
+
+def guided_action(sim: Simulation, rng: np.random.Generator, follow: float):
+    """Towards the goal along the solution with probability ``follow``, else at random.
+
+    The action is a Python int or a numpy integer, so that both are exercised.
+    """
+    solution = sim.maze.solution
+    if sim.cell in solution[:-1] and rng.random() < follow:
+        here = solution.index(sim.cell)
+        action = int(direction_between(sim.cell, solution[here + 1]))
+    else:
+        action = int(rng.integers(0, 4))
+    return action if rng.random() < 0.5 else np.int64(action)
+
+
+def assert_same_info(info: dict, expected: dict) -> None:
+    assert info == expected
+    for key, value in expected.items():
+        assert type(info[key]) is type(value), key
+
+
+@pytest.mark.parametrize("robot", ["DD", "H11"])
+def test_discrete_action_env_matches_simulation(robot):
+    """Random and goal-directed episodes, maze switches by reset option, all identical."""
+    env = gymnasium.make("AMaze-v0", maze=EQUIVALENCE_MAZES[0], robot=robot, deadline_factor=2)
+    rng = np.random.default_rng(7)
+    ends = {"terminated": 0, "truncated": 0}
+    for maze in EQUIVALENCE_MAZES:
+        sim = Simulation(maze, robot, deadline_factor=2)
+        for episode, follow in enumerate([0.0, 0.8, 0.5, 0.95]):
+            obs, info = env.reset(options={"maze": maze} if episode == 0 else None)
+            sim.reset()
+            np.testing.assert_array_equal(obs, simulation_observation(sim))
+            assert obs.dtype == env.observation_space.dtype
+            assert_same_info(info, simulation_info(sim))
+            previous = obs
+            while not sim.done():
+                action = guided_action(sim, rng, follow)
+                obs, reward, terminated, truncated, info = env.step(action)
+                expected_reward = sim.step(action)
+                assert type(reward) is float and reward == expected_reward
+                assert type(terminated) is bool and terminated == sim.success()
+                assert type(truncated) is bool and truncated == sim.failure()
+                np.testing.assert_array_equal(obs, simulation_observation(sim))
+                assert not np.shares_memory(obs, previous)
+                assert_same_info(info, simulation_info(sim))
+                previous = obs
+            ends["terminated"] += terminated
+            ends["truncated"] += truncated
+            with pytest.raises(EpisodeEndedError):
+                env.step(0)
+    assert ends["terminated"] > 5 and ends["truncated"] > 5
+
+
+@pytest.mark.parametrize("robot", ["DD", "H9"])
+def test_discrete_action_validation_matches_simulation(robot):
+    env = gymnasium.make("AMaze-v0", maze="M4_10x10_C1", robot=robot)
+    sim = Simulation("M4_10x10_C1", robot)
+    env.reset()
+    for bad in [4, -1, True, 1.0, np.float64(2.0), "1", None, np.array([1]), np.True_]:
+        with pytest.raises(AmazeError, match="discrete action"):
+            env.step(bad)
+        with pytest.raises(AmazeError, match="discrete action"):
+            sim.step(bad)
+    for good in [np.int8(1), np.uint64(0), np.array(2), 3]:  # refused actions changed nothing
+        obs, reward, *_, info = env.step(good)
+        assert reward == sim.step(good)
+        np.testing.assert_array_equal(obs, simulation_observation(sim))
+        assert_same_info(info, simulation_info(sim))
+
+
+def test_observation_buffers_are_never_handed_out():
+    """Writing into a returned observation does not change later ones."""
+    env = gymnasium.make("AMaze-v0", maze="M4_5x5_U", robot="H7")
+    first, _ = env.reset()
+    first[...] = 7
+    again, _ = env.reset()
+    assert again.max() == 255 and again.min() == 0
+    bump = int(np.flatnonzero(env.unwrapped.maze.walls[env.unwrapped.maze.start])[0])
+    a, *_ = env.step(bump)
+    b, *_ = env.step(bump)  # a collision: same state, same image, another array
+    np.testing.assert_array_equal(a, b)
+    assert not np.shares_memory(a, b)

@@ -7,9 +7,13 @@ EAST=0, NORTH=1, WEST=2, SOUTH=3 ("direct order"). Cell ``(i, j)`` has
 
 from __future__ import annotations
 
+import operator
 from enum import IntEnum
+from typing import Any
 
 import numpy as np
+
+from amaze.errors import AmazeError
 
 
 class Direction(IntEnum):
@@ -46,3 +50,18 @@ def direction_between(a: tuple[int, int], b: tuple[int, int]) -> Direction:
         return _FROM_OFFSET[(b[0] - a[0], b[1] - a[1])]
     except KeyError:
         raise ValueError(f"cells {tuple(a)} and {tuple(b)} are not neighbours") from None
+
+
+def discrete_action(action: Any) -> int:
+    """``action`` as a direction 0..3; anything else (bools, floats, 4...) is an error.
+
+    Python and numpy integers are accepted; the error is an
+    :class:`~amaze.errors.AmazeError` naming the bad action.
+    """
+    try:
+        direction = operator.index(action)
+    except TypeError:
+        direction = -1
+    if direction not in (0, 1, 2, 3) or isinstance(action, bool):
+        raise AmazeError(f"discrete action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
+    return direction

@@ -25,14 +25,14 @@ stepping a ``Simulation``; the tests check both give identical episodes.
 
 from __future__ import annotations
 
-import operator
 from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from amaze.errors import AmazeError, EpisodeEndedError
+from amaze.directions import discrete_action
+from amaze.errors import EpisodeEndedError
 from amaze.maze import Maze, as_maze
 from amaze.rewards import RewardScheme, paper_reward, pretty_reward
 from amaze.robot import Robot, as_robot
@@ -72,21 +72,6 @@ def action_space(robot: Robot) -> spaces.Space:
 def to_image_u8(image: np.ndarray) -> np.ndarray:
     """A float image with values k/255 as the uint8 (1, v, v) observation k."""
     return np.rint(image * 255.0).astype(np.uint8)[None]
-
-
-def discrete_action(action: Any) -> int:
-    """``action`` as a direction 0..3; anything else (bools, floats, 4...) is an error.
-
-    Accepts what :class:`~amaze.simulation.Simulation` accepts (Python and
-    numpy integers) and raises the same :class:`~amaze.errors.AmazeError`.
-    """
-    try:
-        direction = operator.index(action)
-    except TypeError:
-        direction = -1
-    if direction not in (0, 1, 2, 3) or isinstance(action, bool):
-        raise AmazeError(f"discrete action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
-    return direction
 
 
 class _GridMaze:

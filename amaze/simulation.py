@@ -14,14 +14,13 @@ deadline, statistics), with these fixes of its bugs:
 
 from __future__ import annotations
 
-import operator
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from amaze.directions import OFFSETS, direction_between
-from amaze.errors import AmazeError, EpisodeEndedError
+from amaze.directions import OFFSETS, direction_between, discrete_action
+from amaze.errors import EpisodeEndedError
 from amaze.maze import Maze, as_maze
 from amaze.observations import cell_image, continuous_observation, discrete_observation
 from amaze.rewards import DEFAULT_DEADLINE_FACTOR, RewardScheme, paper_reward, pretty_reward
@@ -184,12 +183,7 @@ class Simulation:
             self.stats.sign_moves[placed.kind.value][int(direction != placed.truth)] += 1
 
     def _move_discrete(self, action: Any) -> tuple[bool, tuple[float, float]]:
-        try:
-            direction = operator.index(action)
-        except TypeError:
-            direction = -1
-        if direction not in (0, 1, 2, 3) or isinstance(action, bool):
-            raise AmazeError(f"discrete action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
+        direction = discrete_action(action)
         i, j = self.cell
         self._count_sign_move((i, j), direction)
         offset = OFFSETS[direction]

@@ -3,8 +3,9 @@
 Sub-commands: ``inspect``, ``render``, ``stats`` (mazes from their strings;
 ``-`` reads them from standard input, one per line), ``run`` (alias ``play``:
 one controller, one episode, optional trajectory PNG and GIF), ``inputs``
-(the input-recognition test) and ``suite`` (the standard evaluation suite:
-list, render, evaluate a controller). User mistakes print one line
+(the input-recognition test), ``suite`` (the standard evaluation suite:
+list, render, evaluate a controller) and ``interpolate`` (the stages of an
+interpolation curriculum between two mazes). User mistakes print one line
 ``error: ...`` on standard error and exit with status 2; there is no traceback
 for bad input.
 """
@@ -238,6 +239,36 @@ def _cmd_suite(args: argparse.Namespace) -> None:
         print(f"suite picture -> {render_path}")
 
 
+def _cmd_interpolate(args: argparse.Namespace) -> None:
+    from amaze.interpolation import interpolate, interpolation_start
+    from amaze.maze import Maze
+    from amaze.spec import MazeSpec
+
+    render_path = _output_file(args.render, ".png")
+    end = MazeSpec.from_string(args.end)  # parsed once: a seedless END draws one seed
+    start = interpolation_start(end) if args.start == "trivial" else args.start
+    stages = interpolate(start, end, args.stages, seed=args.seed)
+    strings = [stage.to_string() for stage in stages]
+    if args.json:
+        print(json.dumps(strings))
+    else:
+        for index, stage in enumerate(stages):
+            maze = Maze.generate(stage)
+            counts = maze.stats()
+            print(
+                f"{index:>2} {strings[index]}  {maze.maze_class.label}"
+                f" path={counts['path']} intersections={counts['intersections']}"
+                f" clues={counts['clues']} lures={counts['lures']} traps={counts['traps']}"
+            )
+    if render_path is not None:
+        from amaze.render import render_mazes_grid
+
+        labels = [f"{index}: {text}" for index, text in enumerate(strings)]
+        columns = min(len(stages), 5)
+        render_mazes_grid(strings, columns=columns, labels=labels).save(render_path)
+        print(f"stages picture -> {render_path}", file=sys.stderr if args.json else sys.stdout)
+
+
 def _add_agent_options(parser: argparse.ArgumentParser, controller: bool = True) -> None:
     parser.add_argument("--robot", default="DD", help="robot string: DD, H15, CC15, ... (DD)")
     if controller:
@@ -332,6 +363,23 @@ def build_parser() -> argparse.ArgumentParser:
     _add_agent_options(suite, controller=False)
     suite.add_argument("--csv", metavar="FILE", help="with --evaluate: one row per episode")
     suite.set_defaults(run=_cmd_suite)
+
+    interpolate = commands.add_parser(
+        "interpolate", help="the interpolation curriculum from a start maze to an end maze"
+    )
+    interpolate.add_argument(
+        "start", metavar="START", help="first maze string, or 'trivial' (5x5 unicursive)"
+    )
+    interpolate.add_argument("end", metavar="END", help="target maze string (the last stage)")
+    interpolate.add_argument(
+        "-n", "--stages", type=int, default=10, metavar="N", help="number of stages (10)"
+    )
+    interpolate.add_argument(
+        "--seed", type=int, help="seed of the intermediate stages (default: the end maze's)"
+    )
+    interpolate.add_argument("--json", action="store_true", help="print a JSON list of strings")
+    interpolate.add_argument("--render", metavar="PNG", help="draw every stage in one picture")
+    interpolate.set_defaults(run=_cmd_interpolate)
     return parser
 
 

@@ -1,0 +1,21 @@
+"""Reinforcement-learning baselines: stable-baselines3 A2C/PPO on the AMaze batch engine.
+
+``rl_baselines`` depends on :mod:`amaze` (never the reverse) and on torch and
+stable-baselines3, which are imported here and nowhere in :mod:`amaze`.
+
+* :mod:`rl_baselines.vec_env`: :class:`MazeVecEnv`, an SB3 ``VecEnv`` stepping all
+  environments together on the batch engine;
+* :mod:`rl_baselines.networks`: a small CNN features extractor for 15x15 images;
+* :mod:`rl_baselines.agent`: :class:`SB3Agent`, a trained model as a policy of the
+  shared protocol (``amaze.policy``), with save/load;
+* :mod:`rl_baselines.train`: the training regimes with run folders, checkpoints and resume;
+* :mod:`rl_baselines.cli`: the ``amaze-train`` command.
+"""
+
+from __future__ import annotations
+
+__all__ = ["RLConfigError"]
+
+
+class RLConfigError(ValueError):
+    """Bad user input to the RL baselines (algorithm, regime, budget, config key...)."""

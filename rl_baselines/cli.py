@@ -1,0 +1,142 @@
+"""The ``amaze-train`` command: train SB3 A2C/PPO baselines into run folders.
+
+::
+
+    amaze-train --algo ppo --regime direct --robot DD --budget-steps 100000 --seed 0 --out runs/ppo
+    amaze-train --resume runs/ppo
+    amaze-train --algo a2c --seed 3 --replicates 5 --out runs/a2c   # runs/a2c/seed-3 ... seed-7
+
+``--config FILE.json`` holds SB3 hyperparameters (``{"n_steps": 128, ...}``), or a
+whole config with a ``hyperparameters`` key; command-line options win over it.
+Replicates run one after the other, each in its own process. Bad input prints
+one line ``error: ...`` and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from rl_baselines import RLConfigError
+
+__all__ = ["entry_point", "main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the project's one-line error and status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        print(f"error: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="amaze-train", description="Train SB3 A2C/PPO agents on AMaze mazes.")
+    p.add_argument("--algo", choices=("a2c", "ppo"))
+    p.add_argument("--regime", choices=("direct", "interpolation"))
+    p.add_argument("--robot")
+    p.add_argument("--budget-steps", type=int)
+    p.add_argument("--seed", type=int)
+    p.add_argument("--out")
+    p.add_argument("--eval-every", type=int)
+    p.add_argument("--n-envs", type=int)
+    p.add_argument("--config", help="JSON file: hyperparameters or a whole config")
+    p.add_argument("--resume", metavar="DIR", help="continue the run in DIR")
+    p.add_argument("--replicates", type=int, default=1)
+    return p
+
+
+def _config(args: argparse.Namespace) -> dict[str, Any]:
+    data: dict[str, Any] = {}
+    if args.config:
+        path = Path(args.config)
+        try:
+            loaded = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise RLConfigError(f"config file {args.config!r} does not exist") from None
+        except json.JSONDecodeError as error:
+            raise RLConfigError(f"config file {args.config!r} is not JSON: {error}") from None
+        if not isinstance(loaded, dict):
+            raise RLConfigError(f"config file {args.config!r} does not hold a JSON object")
+        data = loaded if "hyperparameters" in loaded else {"hyperparameters": loaded}
+    for name in ("algo", "regime", "robot", "budget_steps", "seed", "eval_every", "n_envs"):
+        value = getattr(args, name)
+        if value is not None:
+            data[name] = value
+    return data
+
+
+def _replicates(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    """Run seeds S..S+K-1 one after the other, each in its own process."""
+    if args.replicates < 1:
+        raise RLConfigError(f"--replicates {args.replicates} is not a positive integer")
+    if not args.out:
+        raise RLConfigError("--out is required")
+    first = args.seed if args.seed is not None else 0
+    base = _strip(list(argv), ("--replicates", "--seed", "--out"))
+    status = 0
+    for seed in range(first, first + args.replicates):
+        out = str(Path(args.out) / f"seed-{seed}")
+        command = [sys.executable, "-m", "rl_baselines.cli", *base, "--seed", str(seed)]
+        code = subprocess.call([*command, "--out", out])
+        status = status or code
+    return status
+
+
+def _strip(argv: list[str], options: tuple[str, ...]) -> list[str]:
+    """``argv`` without ``options`` (and their values, as ``--x v`` or ``--x=v``)."""
+    kept: list[str] = []
+    skip = False
+    for token in argv:
+        if skip:
+            skip = False
+            continue
+        name = token.split("=", 1)[0]
+        if name in options:
+            skip = "=" not in token
+            continue
+        kept.append(token)
+    return kept
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; return the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = _parser().parse_args(argv)
+    try:
+        if args.resume:
+            from rl_baselines.train import resume
+
+            result = resume(args.resume)
+        elif args.replicates != 1:
+            return _replicates(args, argv)
+        else:
+            if not args.out:
+                raise RLConfigError("--out is required (or --resume DIR)")
+            from rl_baselines.train import train
+
+            result = train(_config(args), args.out)
+    except RLConfigError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    s = result.summary
+    print(
+        f"env steps {result.env_steps}, {result.seconds:.1f} s, converged {result.converged}:"
+        f" success_rate {s['success_rate']:.3f}, normalized_reward"
+        f" {s['normalized_reward']:.3f}, input_recognition {s['input_recognition']}"
+    )
+    return 0
+
+
+def entry_point() -> None:
+    """Console-script entry point."""
+    raise SystemExit(main())
+
+
+if __name__ == "__main__":
+    entry_point()

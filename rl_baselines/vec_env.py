@@ -1,0 +1,167 @@
+"""An SB3 ``VecEnv`` over the batch engine: all environments stepped together.
+
+SB3's own vectorisation (``DummyVecEnv``) loops over N Python environments;
+:class:`MazeVecEnv` instead drives one :class:`~amaze.engine.BatchEngine` with
+N agents, so a step of all environments is one call into compiled code.
+Environment ``k`` plays ``mazes[k % len(mazes)]``.
+
+SB3 semantics: :meth:`MazeVecEnv.step_wait` returns ``(obs, rewards float32,
+dones, infos)``; an environment whose episode ended is reset in the same step
+(the returned observation is the first of the new episode) and its info holds
+``terminal_observation``, ``TimeLimit.truncated`` (deadline reached without
+reaching the goal), ``episode`` (``r``, ``l``, ``t``: what SB3's ``Monitor``
+would give, so that SB3 logs episode returns), and the episode's ``success``,
+``pretty_reward`` and ``paper_reward``.
+
+Observations are those of ``AMaze-v0``: float32 ``(8,)`` for discrete inputs,
+uint8 ``(1, v, v)`` channel-first images otherwise (too small for SB3's
+``CnnPolicy``; see :mod:`rl_baselines.networks`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import (
+    VecEnv,
+    VecEnvIndices,
+    VecEnvStepReturn,
+)
+
+from amaze.engine import BatchEngine
+from amaze.gym_env import action_space, observation_space
+from amaze.maze import Maze, as_maze
+from amaze.policy import as_policy_observations
+from amaze.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.robot import Robot, as_robot
+from amaze.spec import MazeSpec
+from rl_baselines import RLConfigError
+
+__all__ = ["MazeVecEnv"]
+
+
+class MazeVecEnv(VecEnv):
+    """``n_envs`` SB3 environments in ``mazes`` for ``robot``, on one batch engine.
+
+    ``seed`` is accepted for SB3's interface; the mazes and the simulation are
+    deterministic, so the environment itself draws no random numbers.
+    """
+
+    def __init__(
+        self,
+        mazes: Sequence[Maze | MazeSpec | str] | str,
+        robot: Robot | str = "DD",
+        n_envs: int = 4,
+        seed: int | None = None,
+        *,
+        deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
+    ) -> None:
+        if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
+            raise RLConfigError(f"n_envs {n_envs!r} is not a positive integer")
+        maze_list = [mazes] if isinstance(mazes, (str, Maze, MazeSpec)) else list(mazes)
+        if not maze_list:
+            raise RLConfigError("mazes: give at least one maze")
+        self.mazes = [as_maze(m) for m in maze_list]
+        self.robot = as_robot(robot)
+        self.engine = BatchEngine(
+            self.mazes, self.robot, n_envs, deadline_factor=deadline_factor, auto_reset=True
+        )
+        self.render_mode = None
+        super().__init__(n_envs, observation_space(self.robot), action_space(self.robot))
+        self._seed = seed
+        self._actions: np.ndarray | None = None
+        self._start = np.full(n_envs, time.time())
+
+    def _format(self, observations: np.ndarray) -> np.ndarray:
+        return as_policy_observations(observations, self.robot)
+
+    def reset(self) -> np.ndarray:
+        """Restart every environment and return the first observations."""
+        self._reset_seeds()
+        self._reset_options()
+        self._start[:] = time.time()
+        return self._format(self.engine.reset())
+
+    def step_async(self, actions: np.ndarray) -> None:
+        actions = np.asarray(actions)
+        if self.robot.discrete_outputs:
+            actions = actions.reshape(self.num_envs).astype(np.int64, copy=False)
+        self._actions = actions
+
+    def step_wait(self) -> VecEnvStepReturn:
+        if self._actions is None:
+            raise RuntimeError("step_wait called without step_async")
+        result = self.engine.step(self._actions)
+        self._actions = None
+        dones = result.terminated | result.truncated
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        episodes = result.episodes
+        if len(episodes):
+            now = time.time()
+            finals = self._format(result.final_observations)
+            pretty = episodes.pretty_rewards()
+            paper = episodes.paper_rewards()
+            for index, agent in enumerate(episodes.agents.tolist()):
+                info = infos[agent]
+                info["terminal_observation"] = finals[index]
+                info["TimeLimit.truncated"] = bool(
+                    result.truncated[agent] and not result.terminated[agent]
+                )
+                info["success"] = bool(episodes.success[index])
+                info["pretty_reward"] = float(pretty[index])
+                info["paper_reward"] = float(paper[index])
+                info["episode"] = {
+                    "r": float(episodes.cumulative_reward[index]),
+                    "l": int(episodes.steps[index]),
+                    "t": round(now - self._start[agent], 6),
+                }
+                self._start[agent] = now
+        return (
+            self._format(result.observations),
+            result.rewards.astype(np.float32),
+            dones,
+            infos,
+        )
+
+    def close(self) -> None:
+        """Nothing to release (the engine holds only arrays)."""
+
+    def seed(self, seed: int | None = None) -> list[int | None]:
+        """Record ``seed`` (the environment is deterministic and draws nothing)."""
+        self._seed = seed
+        return [seed for _ in range(self.num_envs)]
+
+    def _indices(self, indices: VecEnvIndices) -> list[int]:
+        if indices is None:
+            return list(range(self.num_envs))
+        if isinstance(indices, int):
+            return [indices]
+        return list(indices)
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """The adapter's own attribute, once per environment (they share it)."""
+        value = getattr(self, attr_name)
+        return [value for _ in self._indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        setattr(self, attr_name, value)
+
+    def env_method(
+        self,
+        method_name: str,
+        *method_args: Any,
+        indices: VecEnvIndices = None,
+        **method_kwargs: Any,
+    ) -> list[Any]:
+        method = getattr(self, method_name)
+        return [method(*method_args, **method_kwargs) for _ in self._indices(indices)]
+
+    def env_is_wrapped(
+        self, wrapper_class: type[gymnasium.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
+        """No gymnasium wrappers here (episode statistics come with ``infos``)."""
+        return [False for _ in self._indices(indices)]

@@ -1,0 +1,188 @@
+"""Training runs: config checks, the run folder, kill-and-resume, and a small PPO run."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import rl_baselines.cli as cli_module
+import rl_baselines.train as train_module
+from rl_baselines import RLConfigError
+from rl_baselines.cli import main
+from rl_baselines.train import TrainConfig, stage_end, train
+
+SUMMARY_KEYS = {"success_rate", "normalized_reward", "input_recognition", "env_steps", "seconds"}
+
+
+def _progress(out: Path) -> list[dict[str, str]]:
+    with (out / "progress.csv").open(newline="") as stream:
+        return list(csv.DictReader(stream))
+
+
+@pytest.mark.parametrize(
+    ("data", "bad"),
+    [
+        ({"algo": "dqn"}, "'dqn'"),
+        ({"n_envs": 6}, "6"),
+        ({"budget_steps": 0}, "budget_steps 0"),
+        ({"robot": "Z"}, "'Z'"),
+        ({"regime": "edhucat"}, "'edhucat'"),
+        ({"colour": 1}, "'colour'"),
+        ({"hyperparameters": {"seed": 3}}, "'seed'"),
+    ],
+)
+def test_bad_config_names_the_value(data: dict, bad: str) -> None:
+    with pytest.raises(RLConfigError, match=bad):
+        TrainConfig.from_dict(data)
+
+
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--algo", "ppo", "--n-envs", "5", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "5" in err and err.count("\n") == 1
+    assert main(["--resume", str(tmp_path / "nothing")]) == 2
+    with pytest.raises(SystemExit) as stop:
+        main(["--algo", "sac"])
+    assert stop.value.code == 2
+
+
+def test_run_folder_and_refusal_to_overwrite(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    config = {"algo": "a2c", "budget_steps": 400, "eval_every": 200, "n_envs": 4, "seed": 1}
+    result = train(config, out)
+    assert result.env_steps == 400
+    for name in ("config.json", "progress.csv", "summary.json", "champion.zip", "champion.json"):
+        assert (out / name).exists(), name
+    assert (out / "checkpoints" / "model.zip").exists()
+    assert len(list((out / "trajectories").glob("*.png"))) == 4
+    summary = json.loads((out / "summary.json").read_text())
+    assert SUMMARY_KEYS <= set(summary) and summary["env_steps"] == 400
+    assert [int(r["steps"]) for r in _progress(out)] == [0, 200, 400]
+    with pytest.raises(RLConfigError, match="already holds a run"):
+        train(config, out)
+
+
+def test_kill_and_resume_counts_the_budget_once(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    budget = 12_000
+    command = [sys.executable, "-m", "rl_baselines.cli", "--algo", "a2c", "--seed", "0"]
+    args = ["--budget-steps", str(budget), "--eval-every", "500", "--out", str(out)]
+    process = subprocess.Popen([*command, *args], stderr=subprocess.PIPE)
+    state = out / "checkpoints" / "state.json"
+    deadline = time.monotonic() + 60
+    killed_at = None
+    try:
+        while time.monotonic() < deadline and process.poll() is None:
+            if state.exists():
+                steps = json.loads(state.read_text())["num_timesteps"]
+                if steps > 0:
+                    killed_at = steps
+                    break
+            time.sleep(0.05)
+        assert process.poll() is None, "the run ended before it could be killed"
+    finally:
+        process.kill()
+        process.wait()
+    assert killed_at is not None and 0 < killed_at < budget
+    assert not (out / "summary.json").exists()
+    resumed = subprocess.run(
+        [sys.executable, "-m", "rl_baselines.cli", "--resume", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["env_steps"] == budget
+    steps = [int(r["steps"]) for r in _progress(out)]
+    assert steps == sorted(set(steps)) and steps[0] == 0 and steps[-1] == budget
+    assert json.loads(state.read_text())["num_timesteps"] == budget
+
+
+@pytest.mark.slow
+def test_ppo_end_to_end(tmp_path: Path) -> None:
+    out = tmp_path / "ppo"
+    config = {
+        "algo": "ppo",
+        "budget_steps": 2048,
+        "eval_every": 1024,
+        "n_envs": 4,
+        "hyperparameters": {"n_steps": 128, "batch_size": 128, "n_epochs": 2},
+    }
+    code = main(["--config", _write(tmp_path / "c.json", config), "--out", str(out), "--seed", "2"])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert SUMMARY_KEYS <= set(summary)
+    assert summary["env_steps"] == 2048 and summary["algo"] == "ppo" and summary["seed"] == 2
+    assert json.loads((out / "config.json").read_text())["hyperparameters"]["n_steps"] == 128
+
+
+def _write(path: Path, data: dict) -> str:
+    path.write_text(json.dumps(data))
+    return str(path)
+
+
+def test_stage_shares_hand_unused_budget_on() -> None:
+    assert stage_end(1000, 0, 10) == 100
+    # stage 1 converged after 20 steps: the 9 stages left share the other 980
+    assert stage_end(1000, 20, 9) == 20 + 980 // 9
+    assert stage_end(1000, 950, 1) == 1000
+
+
+def test_early_stop_when_every_evaluation_episode_is_optimal(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(train_module, "OPTIMAL", -1e9)  # any episode counts as optimal
+    config = {"algo": "a2c", "budget_steps": 4000, "eval_every": 100, "n_envs": 4}
+    result = train(config, tmp_path / "run")
+    assert result.converged and result.env_steps < 100
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["converged"] is True
+
+
+def test_interpolation_regime_walks_the_ten_stages(tmp_path: Path) -> None:
+    out = tmp_path / "interp"
+    config = {"algo": "a2c", "regime": "interpolation", "budget_steps": 800, "eval_every": 40}
+    result = train(config, out)
+    assert result.env_steps == 800
+    rows = _progress(out)
+    stages = [int(r["stage"]) for r in rows]
+    assert stages == sorted(stages) and set(stages) == set(range(10))
+    assert [int(r["steps"]) for r in rows if int(r["stage"]) == 9][-1] == 800
+
+
+def test_replicates_run_one_process_per_seed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls: list[list[str]] = []
+    monkeypatch.setattr(cli_module.subprocess, "call", lambda cmd: calls.append(cmd) or 0)
+    argv = [
+        "--algo",
+        "a2c",
+        "--seed=7",
+        "--replicates",
+        "3",
+        "--out",
+        str(tmp_path),
+        "--n-envs",
+        "8",
+    ]
+    assert main(argv) == 0
+    assert len(calls) == 3
+    for seed, command in zip((7, 8, 9), calls, strict=True):
+        assert command[command.index("--seed") + 1] == str(seed)
+        assert command[command.index("--out") + 1] == str(tmp_path / f"seed-{seed}")
+        assert command.count("--seed") == 1 and "--replicates" not in command
+        assert command[command.index("--n-envs") + 1] == "8"
+
+
+def test_unknown_hyperparameter_is_refused_before_the_run_starts(tmp_path: Path) -> None:
+    config = {"algo": "ppo", "hyperparameters": {"n_stepz": 8}}
+    with pytest.raises(RLConfigError, match="n_stepz"):
+        train(config, tmp_path / "run")
+    assert not (tmp_path / "run").exists()

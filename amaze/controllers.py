@@ -460,17 +460,48 @@ def train_tabular(
 # Factory
 
 
+#: Entry-point group through which other packages load their saved agents by
+#: file suffix (``zip = rl_baselines.agent:SB3Agent.load``), so that the command
+#: line runs them without ``amaze`` importing those packages.
+AGENT_LOADERS = "amaze.agent_loaders"
+
+
+def _agent_loader(path: str) -> Any | None:
+    """The registered loader of saved agents with this file's suffix, if any."""
+    from importlib.metadata import entry_points
+
+    suffix = Path(path).suffix.lstrip(".").lower()
+    if not suffix or suffix == "json":
+        return None
+    found = entry_points(group=AGENT_LOADERS, name=suffix)
+    return next(iter(found)).load() if found else None
+
+
 def make_controller(name: str, robot: Robot | str, *, seed: int = 0) -> Any:
     """The policy called ``name`` for ``robot``, for the command line.
 
-    ``name`` is ``random`` (seeded with ``seed``), ``oracle``, or the path of a
-    tabular controller saved as JSON (which keeps its own seed; DD robots only).
+    ``name`` is ``random`` (seeded with ``seed``), ``oracle``, the path of a
+    tabular controller saved as JSON (which keeps its own seed; DD robots only),
+    or the path of an agent saved by another package that registers a loader
+    for its file suffix (e.g. SB3 agents, ``.zip``, from ``rl_baselines``).
     """
     robot = as_robot(robot)
     if name == "random":
         return RandomController(robot, seed=seed)
     if name == "oracle":
         return OracleController(robot)
+    loader = _agent_loader(name) if isinstance(name, str) else None
+    if loader is not None:
+        if not Path(name).is_file():
+            raise ControllerError(f"agent file '{name}' does not exist")
+        agent = loader(name)
+        agent_robot = getattr(agent, "robot", None)
+        if agent_robot is not None and as_robot(agent_robot) != robot:
+            raise ControllerError(
+                f"agent '{name}' drives {as_robot(agent_robot).to_string()} robots,"
+                f" not {robot.to_string()}: pass --robot {as_robot(agent_robot).to_string()}"
+            )
+        return agent
     if isinstance(name, str) and (name.endswith(".json") or Path(name).is_file()):
         if robot.kind != "discrete":
             raise ControllerError(
@@ -479,7 +510,7 @@ def make_controller(name: str, robot: Robot | str, *, seed: int = 0) -> Any:
         return TabularController.load(name)
     raise ControllerError(
         f"unknown controller {name!r}: choose {', '.join(CONTROLLERS)},"
-        " or the path of a saved tabular controller (.json)"
+        " or the path of a saved agent (tabular .json, or SB3 .zip with rl_baselines)"
     )
 
 

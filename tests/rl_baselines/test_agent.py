@@ -64,3 +64,15 @@ def test_bad_names(tmp_path: Path) -> None:
         algorithm_class("dqn")
     with pytest.raises(RLConfigError, match=r"missing\.zip"):
         SB3Agent.load(tmp_path / "missing")
+
+
+def test_amaze_run_loads_saved_sb3_agents(agent: SB3Agent, tmp_path: Path, capsys) -> None:
+    """`amaze run --controller agent.zip` finds the loader through its entry point."""
+    from amaze.cli.main import main
+
+    path = agent.save(tmp_path / "agent")
+    assert main(["run", "M1_5x5_U", "--controller", str(path), "--json"]) == 0
+    outcome = json.loads(capsys.readouterr().out)
+    assert outcome["robot"] == "DD" and outcome["steps"] > 0
+    assert main(["run", "M1_5x5_U", "--controller", str(path), "--robot", "H7"]) == 2
+    assert "drives DD robots" in capsys.readouterr().err

@@ -127,11 +127,19 @@ def test_sign_counts_are_within_bounds(spec):
         assert within(len(maze.lures), (maze.path_length - n - 1) * spec.p_lure)
     else:
         assert not maze.lures
-    for kind_signs, types in ((maze.clues, spec.clue), (maze.lures, spec.lure)):
-        if kind_signs:
-            uses = Counter(p.sign_index for p in kind_signs)
-            share = len(kind_signs) / len(types)
-            assert all(within(uses[k], share) for k in range(len(types)))
+    # Sign types are dealt evenly (§3.6-3.7): the lures' among the lures; the
+    # clues' among all n intersections, before traps replace n_traps of them.
+    if maze.lures:
+        uses = Counter(p.sign_index for p in maze.lures)
+        share = len(maze.lures) / len(spec.lure)
+        assert all(within(uses[k], share) for k in range(len(spec.lure)))
+    if maze.clues:
+        uses = Counter(p.sign_index for p in maze.clues)
+        share = n / len(spec.clue)
+        assert all(
+            math.floor(share) - n_traps <= uses[k] <= math.ceil(share)
+            for k in range(len(spec.clue))
+        )
     assert len({p.cell for p in maze.signs}) == len(maze.signs)
     assert all(p.cell not in (maze.end,) for p in maze.signs)
 

@@ -165,10 +165,10 @@ class EvaluationReport:
         return "\n".join(lines)
 
 
-def _labels(
+def _labelled_mazes(
     mazes: EvaluationSuite | Sequence[Maze | MazeSpec | str] | None,
-) -> tuple[list[str], list[tuple[str, str]]]:
-    """Maze strings to play and their (column, row) labels.
+) -> tuple[list[Maze], list[tuple[str, str]]]:
+    """The mazes to play and their (column, row) labels.
 
     Mazes outside the suite are labelled by their own string (one column each).
     """
@@ -176,11 +176,20 @@ def _labels(
         mazes = standard_suite()
     if isinstance(mazes, EvaluationSuite):
         episodes = mazes.episodes()
-        return [rotated for _, rotated in episodes], [(m.column, m.row) for m, _ in episodes]
-    strings = [as_maze(m).to_string() for m in mazes]
-    if not strings:
+        return [Maze.from_string(rotated) for _, rotated in episodes], [
+            (m.column, m.row) for m, _ in episodes
+        ]
+    if not mazes:
         raise ValueError("evaluate: give at least one maze")
-    return strings, [(s, "") for s in strings]
+    generated = [as_maze(m) for m in mazes]
+    return generated, [(m.to_string(), "") for m in generated]
+
+
+def _maze_key(maze: Maze | MazeSpec | str) -> str:
+    """The canonical string of a maze, without generating it when given a string or spec."""
+    if isinstance(maze, str):
+        return MazeSpec.from_string(maze).to_string()
+    return maze.to_string()
 
 
 class Evaluator:
@@ -200,12 +209,11 @@ class Evaluator:
         inputs: bool = True,
     ) -> None:
         self.robot = as_robot(robot)
-        self.maze_strings, self.labels = _labels(mazes)
+        generated, self.labels = _labelled_mazes(mazes)
+        self.maze_strings = [m.to_string() for m in generated]
+        self.starts = [m.spec.start.shorthand for m in generated]
         self.engine = BatchEngine(
-            [Maze.from_string(s) for s in self.maze_strings],
-            self.robot,
-            len(self.maze_strings),
-            deadline_factor=deadline_factor,
+            generated, self.robot, len(generated), deadline_factor=deadline_factor
         )
         self.input_set: InputSet | None = None
         if inputs and self.robot.kind != "continuous":
@@ -222,7 +230,7 @@ class Evaluator:
                 maze=self.maze_strings[k],
                 column=self.labels[k][0],
                 row=self.labels[k][1],
-                start=MazeSpec.from_string(self.maze_strings[k]).start.shorthand,
+                start=self.starts[k],
                 success=bool(results.success[k]),
                 paper_reward=float(results.paper_reward[k]),
                 pretty_reward=float(results.pretty_reward[k]),
@@ -263,6 +271,6 @@ def evaluate(
     inputs: bool = True,
 ) -> EvaluationReport:
     """Score ``policy`` on the standard suite (or on ``mazes``); see the module docstring."""
-    key = None if mazes is None else tuple(as_maze(m).to_string() for m in mazes)
+    key = None if mazes is None else tuple(_maze_key(m) for m in mazes)
     evaluator = _evaluator(as_robot(robot).to_string(), key, float(deadline_factor), inputs)
     return evaluator.evaluate(policy)

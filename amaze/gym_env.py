@@ -308,17 +308,7 @@ class MazeEnv(gymnasium.Env):
             obs = grid.image(state)
         if success or truncated:
             self._ended = True
-            info = self._grid_info(grid, success, True)
-        else:
-            info = {
-                "maze": self._maze_string,
-                "time": t,
-                "len": grid.path_length,
-                "steps": t,
-                "collisions": self._collisions,
-                "backsteps": self._backsteps,
-                "success": False,
-            }
+        info = self._grid_info(grid, success, self._ended)
         if self.render_mode == "human":
             self.render()
         return obs.copy(), reward, success, truncated, info

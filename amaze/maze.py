@@ -16,6 +16,7 @@ reference library and the ``amaze inspect --json`` contract):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from enum import IntEnum
 from functools import cached_property
 from typing import Any, NamedTuple
@@ -235,3 +236,11 @@ def as_maze(maze: Maze | MazeSpec | str) -> Maze:
     if isinstance(maze, str):
         return Maze.from_string(maze)
     raise ValueError(f"expected a MazeSpec, a Maze or a maze string, not {maze!r}")
+
+
+def as_mazes(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) -> list[Maze]:
+    """A non-empty list of mazes from one maze (or spec, or string) or a sequence of them."""
+    items = [mazes] if isinstance(mazes, (str, Maze, MazeSpec)) else list(mazes)
+    if not items:
+        raise ValueError("mazes: give at least one maze")
+    return [as_maze(m) for m in items]

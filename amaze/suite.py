@@ -65,6 +65,7 @@ __all__ = [
     "SuiteColumn",
     "SuiteMaze",
     "build_suite",
+    "rotations",
     "standard_suite",
 ]
 
@@ -82,6 +83,11 @@ SEED_RANGE = 2**31
 _BATCH = 2048
 
 _DATA_FILE = "evaluation_suite.json"
+
+
+def rotations(maze: str) -> list[str]:
+    """The canonical strings of ``maze`` started from each corner (NW, NE, SW, SE)."""
+    return [spec.to_string() for spec in MazeSpec.from_string(maze).all_rotations()]
 
 
 @dataclass(frozen=True)
@@ -124,7 +130,7 @@ class SuiteMaze:
 
     def rotations(self) -> list[str]:
         """The maze string started from each corner (NW, NE, SW, SE)."""
-        return [spec.to_string() for spec in MazeSpec.from_string(self.string).all_rotations()]
+        return rotations(self.string)
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from gymnasium.vector.utils import batch_space
 
 from amaze.engine import BatchEngine
 from amaze.gym_env import DEFAULT_MAZE, action_space, observation_space
-from amaze.maze import Maze, as_maze
+from amaze.maze import Maze, as_mazes
 from amaze.robot import Robot, as_robot
 from amaze.spec import MazeSpec
 
@@ -43,10 +43,7 @@ class MazeVectorEnv(VectorEnv):
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs {num_envs!r} is not a positive integer")
-        mazes = [maze] if isinstance(maze, (str, Maze, MazeSpec)) else list(maze)
-        if not mazes:
-            raise ValueError("maze: give at least one maze")
-        self.mazes = [as_maze(m) for m in mazes]
+        self.mazes = as_mazes(maze)
         self.robot = as_robot(robot)
         self.num_envs = num_envs
         self.engine = BatchEngine(

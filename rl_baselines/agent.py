@@ -48,10 +48,6 @@ def _paths(path: str | os.PathLike) -> tuple[Path, Path]:
     return zip_path, zip_path.with_suffix(".json")
 
 
-def _atomic_replace(source: Path, target: Path) -> None:
-    os.replace(source, target)
-
-
 class SB3Agent:
     """A trained SB3 model acting deterministically for ``robot``."""
 
@@ -80,8 +76,8 @@ class SB3Agent:
         self.model.save(tmp_zip)
         tmp_json = json_path.with_name(f".{json_path.name}.tmp")
         tmp_json.write_text(json.dumps(self.metadata(), indent=2) + "\n")
-        _atomic_replace(tmp_zip, zip_path)
-        _atomic_replace(tmp_json, json_path)
+        os.replace(tmp_zip, zip_path)
+        os.replace(tmp_json, json_path)
         return zip_path
 
     @classmethod

@@ -58,25 +58,19 @@ from stable_baselines3.common.callbacks import BaseCallback
 from amaze.evaluation import Evaluator
 from amaze.policy import record_episode
 from amaze.robot import as_robot
-from amaze.spec import MazeSpec
-from amaze.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
+from amaze.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, rotations
 from amaze.trajectories import save_trajectory_png
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, algorithm_class
 from rl_baselines.networks import small_cnn_kwargs
 from rl_baselines.vec_env import MazeVecEnv
 
-__all__ = ["REGIMES", "TrainConfig", "TrainResult", "resume", "rotations", "stage_end", "train"]
+__all__ = ["REGIMES", "TrainConfig", "TrainResult", "resume", "stage_end", "train"]
 
 REGIMES = ("direct", "interpolation")
 PROGRESS_FIELDS = ("steps", "seconds", "eval_success", "eval_rbar", "stage")
 #: R̄ at or above this counts as optimal (R̄ is 1 for a run in l-1 steps).
 OPTIMAL = 1.0 - 1e-9
-
-
-def rotations(maze: str) -> list[str]:
-    """The 4 rotations of ``maze`` (start in each corner) as canonical strings."""
-    return [spec.to_string() for spec in MazeSpec.from_string(maze).all_rotations()]
 
 
 @dataclass

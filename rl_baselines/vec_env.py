@@ -34,7 +34,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 
 from amaze.engine import BatchEngine
 from amaze.gym_env import action_space, observation_space
-from amaze.maze import Maze, as_maze
+from amaze.maze import Maze, as_mazes
 from amaze.policy import as_policy_observations
 from amaze.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.robot import Robot, as_robot
@@ -62,10 +62,7 @@ class MazeVecEnv(VecEnv):
     ) -> None:
         if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
             raise RLConfigError(f"n_envs {n_envs!r} is not a positive integer")
-        maze_list = [mazes] if isinstance(mazes, (str, Maze, MazeSpec)) else list(mazes)
-        if not maze_list:
-            raise RLConfigError("mazes: give at least one maze")
-        self.mazes = [as_maze(m) for m in maze_list]
+        self.mazes = as_mazes(mazes)
         self.robot = as_robot(robot)
         self.engine = BatchEngine(
             self.mazes, self.robot, n_envs, deadline_factor=deadline_factor, auto_reset=True

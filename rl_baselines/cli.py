@@ -8,15 +8,17 @@
 
 ``--config FILE.json`` holds SB3 hyperparameters (``{"n_steps": 128, ...}``), or a
 whole config with a ``hyperparameters`` key; command-line options win over it.
-Replicates run one after the other, each in its own process. Bad input prints
-one line ``error: ...`` and exits with status 2.
+Replicates run as parallel worker processes (``--workers``, default one per
+core; see :mod:`amaze.replicates`), each writing its output to its folder's
+``log.txt``. SB3's progress bar shows on a terminal (``--progress`` /
+``--no-progress`` decide otherwise); TensorBoard logs go to the run folder's
+``tensorboard/``. Bad input prints one line ``error: ...`` and exits with status 2.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -47,7 +49,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--n-envs", type=int)
     p.add_argument("--config", help="JSON file: hyperparameters or a whole config")
     p.add_argument("--resume", metavar="DIR", help="continue the run in DIR")
-    p.add_argument("--replicates", type=int, default=1)
+    p.add_argument("--replicates", type=int, default=1, help="seeds S..S+K-1, in OUT/seed-<s>")
+    p.add_argument("--workers", type=int, help="replicates run at once (default: one per core)")
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        help="SB3's progress bar (default: on when stderr is a terminal)",
+    )
     return p
 
 
@@ -72,36 +80,18 @@ def _config(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _replicates(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    """Run seeds S..S+K-1 one after the other, each in its own process."""
-    if args.replicates < 1:
-        raise RLConfigError(f"--replicates {args.replicates} is not a positive integer")
+    """Run seeds S..S+K-1 as parallel worker processes, each in ``OUT/seed-<s>``."""
+    from amaze.replicates import plan_replicates, run_replicates
+
     if not args.out:
         raise RLConfigError("--out is required")
     first = args.seed if args.seed is not None else 0
-    base = _strip(list(argv), ("--replicates", "--seed", "--out"))
-    status = 0
-    for seed in range(first, first + args.replicates):
-        out = str(Path(args.out) / f"seed-{seed}")
-        command = [sys.executable, "-m", "rl_baselines.cli", *base, "--seed", str(seed)]
-        code = subprocess.call([*command, "--out", out])
-        status = status or code
-    return status
-
-
-def _strip(argv: list[str], options: tuple[str, ...]) -> list[str]:
-    """``argv`` without ``options`` (and their values, as ``--x v`` or ``--x=v``)."""
-    kept: list[str] = []
-    skip = False
-    for token in argv:
-        if skip:
-            skip = False
-            continue
-        name = token.split("=", 1)[0]
-        if name in options:
-            skip = "=" not in token
-            continue
-        kept.append(token)
-    return kept
+    try:
+        plan = plan_replicates("rl_baselines.cli", [*argv, "--no-progress"], first,
+                               args.replicates, args.out)  # fmt: skip
+        return run_replicates(plan, args.workers)
+    except ValueError as error:
+        raise RLConfigError(str(error)) from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -109,10 +99,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = _parser().parse_args(argv)
     try:
+        progress = sys.stderr.isatty() if args.progress is None else args.progress
         if args.resume:
             from rl_baselines.train import resume
 
-            result = resume(args.resume)
+            result = resume(args.resume, progress_bar=progress)
         elif args.replicates != 1:
             return _replicates(args, argv)
         else:
@@ -120,7 +111,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise RLConfigError("--out is required (or --resume DIR)")
             from rl_baselines.train import train
 
-            result = train(_config(args), args.out)
+            result = train(_config(args), args.out, progress_bar=progress)
     except RLConfigError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -30,7 +30,10 @@ Run folder (``out``):
 * ``summary.json``: the final agent on the standard evaluation suite
   (``success_rate``, ``normalized_reward``, ``input_recognition``...) and the
   budget spent (``env_steps``, ``seconds``);
-* ``trajectories/``: PNGs of the final agent in the 4 evaluation rotations.
+* ``trajectories/``: PNGs of the final agent in the 4 evaluation rotations;
+* ``tensorboard/``: SB3's TensorBoard logs (losses, episode returns) and the
+  evaluations (``eval/success_rate``, ``eval/rbar``, ``eval/stage``), one log
+  per stage (``direct_0`` or ``stage-<k>_0``); ``tensorboard --logdir OUT/tensorboard``.
 
 Evaluations (and checkpoints) happen at the first rollout boundary at least
 ``eval_every`` steps after the previous one, and once more at the end.
@@ -84,6 +87,7 @@ class TrainConfig:
     seed: int = 0
     eval_every: int = 50_000
     n_envs: int = 4
+    tensorboard: bool = True
     hyperparameters: dict[str, Any] = field(default_factory=dict)
 
     def validate(self) -> TrainConfig:
@@ -104,6 +108,8 @@ class TrainConfig:
                 raise RLConfigError(f"{name} {value!r} is not a positive integer")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise RLConfigError(f"seed {self.seed!r} is not a non-negative integer")
+        if not isinstance(self.tensorboard, bool):
+            raise RLConfigError(f"tensorboard {self.tensorboard!r} is not true or false")
         if self.n_envs % 4:
             raise RLConfigError(f"n_envs {self.n_envs} is not a multiple of 4 (one per rotation)")
         if not isinstance(self.hyperparameters, dict):
@@ -144,10 +150,15 @@ def _write_json(path: Path, data: Any) -> None:
     os.replace(tmp, path)
 
 
-def _make_model(config: TrainConfig, env: MazeVecEnv) -> BaseAlgorithm:
+def _tensorboard_dir(config: TrainConfig, out: Path) -> str | None:
+    return str(out / "tensorboard") if config.tensorboard else None
+
+
+def _make_model(config: TrainConfig, env: MazeVecEnv, out: Path) -> BaseAlgorithm:
     """A fresh SB3 model: default hyperparameters unless the config overrides them."""
     cls = algorithm_class(config.algo)
     kwargs = dict(config.hyperparameters)
+    kwargs.setdefault("tensorboard_log", _tensorboard_dir(config, out))
     if as_robot(config.robot).discrete_inputs:
         policy = "MlpPolicy"
     else:
@@ -260,6 +271,10 @@ class _EvaluationCallback(BaseCallback):
             agent.save(run.out / "champion.zip")
         run.converged = all(e.paper_reward >= OPTIMAL for e in report.episodes)
         run.last_eval_steps = steps
+        self.logger.record("eval/success_rate", score[0])
+        self.logger.record("eval/rbar", score[1])
+        self.logger.record("eval/stage", run.stage)
+        self.logger.dump(steps)
         run.append_progress(
             {
                 "steps": steps,
@@ -339,7 +354,11 @@ def _env(config: TrainConfig, stages: list[tuple[list[str], list[str]]], stage: 
     return MazeVecEnv(stages[stage][0], config.robot, config.n_envs, config.seed)
 
 
-def _run(run: _RunState, model: BaseAlgorithm) -> TrainResult:
+def _tb_log_name(config: TrainConfig, stage: int) -> str:
+    return "direct" if config.regime == "direct" else f"stage-{stage}"
+
+
+def _run(run: _RunState, model: BaseAlgorithm, progress_bar: bool = False) -> TrainResult:
     """Train stage after stage from ``run.stage`` on, then write the final outputs.
 
     ``model`` already has the environments of stage ``run.stage``.
@@ -355,8 +374,16 @@ def _run(run: _RunState, model: BaseAlgorithm) -> TrainResult:
         callback.evaluator = Evaluator(config.robot, mazes=eval_mazes, inputs=False)
         remaining = run.stage_end - used
         if remaining > 0 and not run.converged:
-            model.learn(total_timesteps=remaining, callback=callback, reset_num_timesteps=False)
-        if run.last_eval_steps != int(model.num_timesteps):
+            model.learn(
+                total_timesteps=remaining,
+                callback=callback,
+                reset_num_timesteps=False,
+                tb_log_name=_tb_log_name(config, run.stage),
+                progress_bar=progress_bar,
+            )
+        # A converged stage stopped one step after its last evaluation, before any
+        # training on it: the model evaluated is the final one, so no second row.
+        if run.last_eval_steps != int(model.num_timesteps) and not run.converged:
             callback.init_callback(model)
             callback.evaluate_now()
         if run.stage + 1 == len(stages):
@@ -372,8 +399,13 @@ def _run(run: _RunState, model: BaseAlgorithm) -> TrainResult:
     return TrainResult(agent, int(model.num_timesteps), run.seconds(), run.converged, summary)
 
 
-def train(config: TrainConfig | dict[str, Any], out: str | os.PathLike) -> TrainResult:
-    """Train a fresh agent as ``config`` says and write the run folder ``out``."""
+def train(
+    config: TrainConfig | dict[str, Any], out: str | os.PathLike, *, progress_bar: bool = False
+) -> TrainResult:
+    """Train a fresh agent as ``config`` says and write the run folder ``out``.
+
+    ``progress_bar`` shows SB3's progress bar (one per stage).
+    """
     if isinstance(config, dict):
         config = TrainConfig.from_dict(config)
     config.validate()
@@ -382,13 +414,13 @@ def train(config: TrainConfig | dict[str, Any], out: str | os.PathLike) -> Train
     path = Path(out)
     if (path / "config.json").exists():
         raise RLConfigError(f"{str(path)!r} already holds a run (use resume)")
-    model = _make_model(config, _env(config, stages, 0))  # bad hyperparameters fail here
+    model = _make_model(config, _env(config, stages, 0), path)  # bad hyperparameters fail here
     path.mkdir(parents=True, exist_ok=True)
     _write_json(path / "config.json", config.to_dict())
-    return _run(_RunState(path, config), model)
+    return _run(_RunState(path, config), model, progress_bar)
 
 
-def resume(out: str | os.PathLike) -> TrainResult:
+def resume(out: str | os.PathLike, *, progress_bar: bool = False) -> TrainResult:
     """Continue the run in ``out`` from its latest checkpoint (same config, remaining budget)."""
     path = Path(out)
     config_path = path / "config.json"
@@ -401,11 +433,14 @@ def resume(out: str | os.PathLike) -> TrainResult:
     if (run.checkpoints / "model.zip").exists() and (run.checkpoints / "state.json").exists():
         state = run.load_state()
         model = algorithm_class(config.algo).load(
-            run.checkpoints / "model.zip", env=_env(config, stages, run.stage), device="cpu"
+            run.checkpoints / "model.zip",
+            env=_env(config, stages, run.stage),
+            device="cpu",
+            tensorboard_log=_tensorboard_dir(config, path),
         )
         model.num_timesteps = int(state["num_timesteps"])
         run.trim_progress(model.num_timesteps)
     else:
         (path / "progress.csv").unlink(missing_ok=True)
-        model = _make_model(config, _env(config, stages, 0))
-    return _run(run, model)
+        model = _make_model(config, _env(config, stages, 0), path)
+    return _run(run, model, progress_bar)

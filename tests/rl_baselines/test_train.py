@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 
-import rl_baselines.cli as cli_module
 import rl_baselines.train as train_module
 from rl_baselines import RLConfigError
 from rl_baselines.cli import main
@@ -159,26 +158,38 @@ def test_interpolation_regime_walks_the_ten_stages(tmp_path: Path) -> None:
 def test_replicates_run_one_process_per_seed(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    calls: list[list[str]] = []
-    monkeypatch.setattr(cli_module.subprocess, "call", lambda cmd: calls.append(cmd) or 0)
-    argv = [
-        "--algo",
-        "a2c",
-        "--seed=7",
-        "--replicates",
-        "3",
-        "--out",
-        str(tmp_path),
-        "--n-envs",
-        "8",
-    ]
-    assert main(argv) == 0
-    assert len(calls) == 3
-    for seed, command in zip((7, 8, 9), calls, strict=True):
+    import amaze.replicates
+
+    plans: list[tuple[list, int | None]] = []
+    monkeypatch.setattr(
+        amaze.replicates, "run_replicates", lambda plan, workers: plans.append((plan, workers)) or 0
+    )
+    argv = ["--algo", "a2c", "--seed=7", "--replicates", "3", "--workers", "2"]
+    assert main([*argv, "--out", str(tmp_path), "--n-envs", "8"]) == 0
+    ((plan, workers),) = plans
+    assert workers == 2 and [r.seed for r in plan] == [7, 8, 9]
+    for seed, replicate in zip((7, 8, 9), plan, strict=True):
+        command = replicate.command
+        assert command[command.index("-m") + 1] == "rl_baselines.cli"
         assert command[command.index("--seed") + 1] == str(seed)
         assert command[command.index("--out") + 1] == str(tmp_path / f"seed-{seed}")
         assert command.count("--seed") == 1 and "--replicates" not in command
+        assert "--workers" not in command and "--no-progress" in command
         assert command[command.index("--n-envs") + 1] == "8"
+
+
+def test_tensorboard_logs_in_the_run_folder(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    train({"algo": "a2c", "budget_steps": 40, "eval_every": 20}, out)
+    logs = list((out / "tensorboard").rglob("events.out.tfevents.*"))
+    assert logs and all(p.stat().st_size > 0 for p in logs)
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(logs[0].parent))
+    events.Reload()
+    assert "eval/success_rate" in events.Tags()["scalars"]
+    steps = [e.step for e in events.Scalars("eval/rbar")]
+    assert steps == sorted(steps) and steps[0] == 0
 
 
 def test_unknown_hyperparameter_is_refused_before_the_run_starts(tmp_path: Path) -> None:

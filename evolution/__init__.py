@@ -1,0 +1,25 @@
+"""Neuroevolution on the AMaze batch engine: CMA-ES and a NEAT-like GA.
+
+``evolution`` depends on :mod:`amaze` (never the reverse, never on
+``rl_baselines``) and on ``cma`` and ``deap``.
+
+* :mod:`evolution.networks`: fixed-topology networks (linear, MLP, a small
+  image encoder for hybrid and continuous robots) as flat parameter vectors,
+  a whole population evaluated in one batched forward pass;
+* :mod:`evolution.neat`: the NEAT-like genome (node and connection genes with
+  innovation numbers), its operators on ``deap`` and its compilation to a
+  batched feed-forward evaluator;
+* :mod:`evolution.population`: population policies played on the batch
+  engine (P policies x M episodes stepped together) and their fitness;
+* :mod:`evolution.agent_file`: evolved agents saved as ``.npz`` + JSON, never pickled;
+* :mod:`evolution.cmaes`, :mod:`evolution.run`, :mod:`evolution.cli`: the
+  algorithms, run folders with checkpoint/resume, and the ``amaze-evolve`` command.
+"""
+
+from __future__ import annotations
+
+__all__ = ["EvolutionConfigError"]
+
+
+class EvolutionConfigError(ValueError):
+    """Bad user input to the evolution package (algorithm, network, budget, config key...)."""

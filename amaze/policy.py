@@ -10,13 +10,17 @@ a batch of observations to a batch of actions.
 * Actions are integers ``(n,)`` in ``0..3`` (E, N, W, S) for discrete outputs,
   floats ``(n, 2)`` (accelerations) for continuous ones.
 
-Two optional methods let a policy keep state or look at the maze itself:
+Optional methods let a policy keep state, look at the maze itself or save work:
 
 * ``reset(n_agents)`` is called before the first step of a run (recurrent or
   random policies start afresh there);
 * ``bind(engine)`` hands over the :class:`~amaze.engine.BatchEngine` before the
   first step, for privileged controllers such as the oracle that follows the
-  solution. Learned agents never use it.
+  solution. Learned agents never use it;
+* ``retire(agents)`` is called by :func:`run_episodes` with the agents whose
+  scored (first) episode has just ended: their later actions are ignored, so a
+  policy may stop computing them (and return any valid action for them) until
+  the next ``reset``. Populations of evolved networks skip them this way.
 
 :func:`run_episodes` plays one episode per agent, all agents together;
 :func:`record_episode` plays one episode of one agent and records its trajectory.
@@ -30,7 +34,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from amaze.directions import OFFSETS
-from amaze.engine import BatchEngine
+from amaze.engine import BatchEngine, EpisodeStatistics
 from amaze.maze import Maze
 from amaze.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.robot import Robot
@@ -110,13 +114,17 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
     in new episodes whose results are ignored, so that the whole batch keeps
     stepping together. ``max_steps`` caps the number of batch steps (an
     episode cannot outlast its deadline anyway); agents still running then
-    raise an error rather than being silently scored.
+    raise an error rather than being silently scored. A policy's ``retire``
+    hook, if any, hears of each agent whose scored episode has ended.
     """
     if not engine.auto_reset:
         raise ValueError("run_episodes needs an engine built with auto_reset=True")
     n = engine.n_agents
     observations = engine.reset()
     _prepare(policy, engine)
+    retire = getattr(policy, "retire", None)
+    if not callable(retire):
+        retire = None
     finished = np.zeros(n, dtype=bool)
     fields = {
         key: np.zeros(n, dtype=dtype)
@@ -127,8 +135,6 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
             ("backsteps", np.int64),
             ("path_length", np.int64),
             ("cumulative_reward", np.float64),
-            ("pretty_reward", np.float64),
-            ("paper_reward", np.float64),
         )
     }
     steps = 0
@@ -149,10 +155,22 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
                 fields["backsteps"][agents] = episodes.backsteps[first]
                 fields["path_length"][agents] = episodes.path_length[first]
                 fields["cumulative_reward"][agents] = episodes.cumulative_reward[first]
-                fields["pretty_reward"][agents] = episodes.pretty_rewards()[first]
-                fields["paper_reward"][agents] = episodes.paper_rewards()[first]
                 finished[agents] = True
-    return EpisodeResults(maze_index=engine.assignment, **fields)
+                if retire is not None:
+                    retire(agents)
+    # the normalised rewards of the scored episodes only, computed once
+    scored = EpisodeStatistics(
+        agents=np.arange(n),
+        dt=engine.dt,
+        deadline_factor=engine.deadline_factor,
+        **fields,
+    )
+    return EpisodeResults(
+        maze_index=engine.assignment,
+        pretty_reward=scored.pretty_rewards(),
+        paper_reward=scored.paper_rewards(),
+        **fields,
+    )
 
 
 def record_episode(

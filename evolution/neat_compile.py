@@ -1,0 +1,531 @@
+"""NEAT genomes compiled to a batched feed-forward evaluator (numba).
+
+A genome (node and connection genes, see :mod:`evolution.neat`) compiles to a
+few flat arrays (:func:`genome_to_arrays`): the nodes that influence an output,
+in topological order, each with its bias, its activation code and its incoming
+enabled connections as a CSR list of (source, weight). Disabled connections
+and hidden nodes from which no output can be reached are left out: they do not
+change what the network computes.
+
+A population of P genomes concatenates those arrays with per-genome offsets
+into a :class:`GenomePopulation`, the population policy of the run loop: one
+numba kernel call evaluates every agent of a batch, agent ``k`` using genome
+``k // M`` where ``M = n_agents // P``. The same arrays are what an agent file
+stores (:func:`policy_from_arrays` reads them back, without pickle).
+
+Inputs are the robot's observations: the 8 floats of a discrete-input robot,
+or the ``v x v`` pixels of an image robot scaled to [0, 1] (gray level / 255),
+row-major. Outputs: 4 values whose argmax (the first on ties) is the action
+E, N, W, S for discrete outputs; 2 tanh values (accelerations in [-1, 1]) for
+continuous outputs.
+
+The kernel comes in a serial and a multi-threaded (``prange``) version, with
+identical results. On 2 cores, 100 genomes x 72 agents, the serial kernel
+evaluates 5 to 25 million agents per second (72 to 32 connections per genome)
+and the threaded one 1.5 to 2 times as many on an idle machine; on a busy one a
+thread can wait a scheduler time slice at each call, so the threaded kernel is
+chosen by default only for large batches with idle cores.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from heapq import heapify, heappop, heappush
+from typing import Any
+
+import numba
+import numpy as np
+from numba import prange
+
+from amaze.robot import Robot, as_robot
+from evolution import EvolutionConfigError
+
+__all__ = [
+    "ACTIVATIONS",
+    "ARRAY_KEYS",
+    "GenomePopulation",
+    "genome_to_arrays",
+    "policy_from_arrays",
+    "robot_io",
+]
+
+#: Node activation functions, by code (the index in this tuple).
+ACTIVATIONS: tuple[str, ...] = ("identity", "tanh", "sigmoid", "relu", "gauss", "sin")
+_CODES = {name: code for code, name in enumerate(ACTIVATIONS)}
+
+#: The arrays of one compiled genome (see :func:`genome_to_arrays`).
+ARRAY_KEYS: tuple[str, ...] = (
+    "node_ids",
+    "bias",
+    "activation",
+    "indptr",
+    "sources",
+    "weights",
+    "outputs",
+)
+
+#: Discrete outputs: 4 action values (E, N, W, S); continuous: 2 accelerations.
+N_DISCRETE_OUTPUTS = 4
+N_CONTINUOUS_OUTPUTS = 2
+N_DISCRETE_INPUTS = 8
+
+#: The multi-threaded kernel is the default from this many connection
+#: evaluations per call (agents x mean connections per genome, some 40 µs of
+#: serial work), on a machine with several numba threads and idle cores.
+_PARALLEL_MIN_WORK = 20_000
+
+
+def robot_io(robot: Robot | str) -> tuple[int, int]:
+    """The number of network inputs and outputs of a robot.
+
+    8 inputs for discrete-input robots, ``v * v`` pixels for image robots;
+    4 outputs (argmax action) for discrete outputs, 2 (accelerations) for
+    continuous ones.
+    """
+    robot = as_robot(robot)
+    n_inputs = N_DISCRETE_INPUTS if robot.discrete_inputs else int(robot.vision) ** 2
+    n_outputs = N_DISCRETE_OUTPUTS if robot.discrete_outputs else N_CONTINUOUS_OUTPUTS
+    return n_inputs, n_outputs
+
+
+# -----------------------------------------------------------------------------
+# One genome to arrays
+
+
+def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
+    """The arrays of a genome's feed-forward evaluator and a JSON-ready description.
+
+    Arrays: ``node_ids`` (int64, the evaluated nodes in topological order:
+    outputs and the hidden nodes that reach an output through enabled
+    connections), ``bias`` (float64), ``activation`` (int64 codes into
+    ``architecture["activations"]``), ``indptr`` (int64, node ``j``'s incoming
+    connections are ``indptr[j]:indptr[j + 1]``), ``sources`` (int64: an input
+    index below ``n_inputs``, else ``n_inputs`` + the index of an evaluated
+    node), ``weights`` (float64) and ``outputs`` (int64, the evaluated-node
+    index of each output). The architecture holds ``type`` ("neat"),
+    ``n_inputs``, ``n_outputs``, ``activations`` and the sizes.
+    """
+    n_inputs, n_outputs = int(genome.n_inputs), int(genome.n_outputs)
+    output_ids = [n_inputs + o for o in range(n_outputs)]
+    incoming: dict[int, list[Any]] = {}
+    for innovation in sorted(genome.connections):
+        gene = genome.connections[innovation]
+        if gene.enabled:
+            incoming.setdefault(gene.out_node, []).append(gene)
+    # nodes that reach an output (walking enabled connections backwards)
+    required = set(output_ids)
+    stack = list(output_ids)
+    while stack:
+        node = stack.pop()
+        for gene in incoming.get(node, ()):
+            source = gene.in_node
+            if source >= n_inputs and source not in required:
+                required.add(source)
+                stack.append(source)
+    # Kahn's topological order among the required nodes, smallest id first
+    pending = {node: 0 for node in required}
+    children: dict[int, list[int]] = {}
+    for node in required:
+        for gene in incoming.get(node, ()):
+            if gene.in_node >= n_inputs:
+                pending[node] += 1
+                children.setdefault(gene.in_node, []).append(node)
+    ready = [node for node, count in pending.items() if count == 0]
+    heapify(ready)
+    order: list[int] = []
+    while ready:
+        node = heappop(ready)
+        order.append(node)
+        for child in children.get(node, ()):
+            pending[child] -= 1
+            if pending[child] == 0:
+                heappush(ready, child)
+    if len(order) != len(required):
+        raise ValueError("the genome's enabled connections form a cycle")
+    index = {node: j for j, node in enumerate(order)}
+    bias = np.empty(len(order), dtype=np.float64)
+    activation = np.empty(len(order), dtype=np.int64)
+    indptr = np.zeros(len(order) + 1, dtype=np.int64)
+    sources: list[int] = []
+    weights: list[float] = []
+    for j, node in enumerate(order):
+        gene = genome.nodes[node]
+        bias[j] = gene.bias
+        activation[j] = _CODES[gene.activation]
+        for connection in incoming.get(node, ()):
+            source = connection.in_node
+            sources.append(source if source < n_inputs else n_inputs + index[source])
+            weights.append(connection.weight)
+        indptr[j + 1] = len(sources)
+    arrays = {
+        "node_ids": np.asarray(order, dtype=np.int64),
+        "bias": bias,
+        "activation": activation,
+        "indptr": indptr,
+        "sources": np.asarray(sources, dtype=np.int64),
+        "weights": np.asarray(weights, dtype=np.float64),
+        "outputs": np.asarray([index[node] for node in output_ids], dtype=np.int64),
+    }
+    architecture = {
+        "type": "neat",
+        "n_inputs": n_inputs,
+        "n_outputs": n_outputs,
+        "activations": list(ACTIVATIONS),
+        "n_nodes": len(order),
+        "n_connections": len(sources),
+    }
+    return arrays, architecture
+
+
+def _checked_arrays(
+    arrays: Mapping[str, np.ndarray], architecture: Mapping[str, Any]
+) -> dict[str, np.ndarray]:
+    """``arrays`` validated against ``architecture`` (user input: an agent file)."""
+    missing = [key for key in ARRAY_KEYS if key not in arrays]
+    if missing:
+        raise EvolutionConfigError(f"NEAT agent arrays lack {', '.join(missing)}")
+    for key in ("n_inputs", "n_outputs", "activations"):
+        if key not in architecture:
+            raise EvolutionConfigError(f"NEAT agent architecture lacks '{key}'")
+    n_inputs, n_outputs = int(architecture["n_inputs"]), int(architecture["n_outputs"])
+    out = {key: np.asarray(arrays[key]) for key in ARRAY_KEYS}
+    for key in ("node_ids", "activation", "indptr", "sources", "outputs"):
+        if out[key].ndim != 1 or not np.issubdtype(out[key].dtype, np.integer):
+            raise EvolutionConfigError(f"NEAT agent array '{key}' must be a 1-d integer array")
+        out[key] = out[key].astype(np.int64)
+    for key in ("bias", "weights"):
+        if out[key].ndim != 1 or not np.issubdtype(out[key].dtype, np.floating):
+            raise EvolutionConfigError(f"NEAT agent array '{key}' must be a 1-d float array")
+        out[key] = out[key].astype(np.float64)
+    n_nodes, n_edges = out["bias"].shape[0], out["weights"].shape[0]
+    indptr = out["indptr"]
+    if (
+        out["activation"].shape[0] != n_nodes
+        or out["node_ids"].shape[0] != n_nodes
+        or indptr.shape[0] != n_nodes + 1
+        or out["sources"].shape[0] != n_edges
+        or indptr[0] != 0
+        or indptr[-1] != n_edges
+        or np.any(np.diff(indptr) < 0)
+    ):
+        raise EvolutionConfigError("NEAT agent arrays have inconsistent sizes")
+    if out["outputs"].shape[0] != n_outputs or np.any(
+        (out["outputs"] < 0) | (out["outputs"] >= n_nodes)
+    ):
+        raise EvolutionConfigError(f"NEAT agent 'outputs' must be {n_outputs} node indices")
+    # a source must be an input or an earlier node (feed-forward)
+    target = np.repeat(np.arange(n_nodes), np.diff(indptr))
+    sources = out["sources"]
+    if np.any((sources < 0) | ((sources >= n_inputs) & (sources - n_inputs >= target))):
+        raise EvolutionConfigError("NEAT agent 'sources' are not in feed-forward order")
+    names = list(architecture["activations"])
+    codes = out["activation"]
+    if np.any((codes < 0) | (codes >= len(names))):
+        raise EvolutionConfigError("NEAT agent 'activation' codes out of range")
+    unknown = sorted({names[c] for c in codes.tolist()} - set(_CODES))
+    if unknown:
+        raise EvolutionConfigError(f"unknown NEAT activation {unknown[0]!r}")
+    remap = np.asarray([_CODES.get(name, -1) for name in names], dtype=np.int64)
+    out["activation"] = remap[codes] if len(codes) else codes
+    return out
+
+
+# -----------------------------------------------------------------------------
+# Kernels
+#
+# The agents of a genome are evaluated in blocks of at most _BLOCK: node by
+# node, each connection is applied to the whole block (an inner loop over
+# agents, independent iterations the compiler vectorises) instead of one agent
+# after another (a chain of dependent additions and activations). On a
+# population of 100 genomes x 72 agents this is 2 to 5 times faster.
+
+_BLOCK = 64
+
+
+@numba.njit(cache=True, inline="always")
+def _activate(code, x):
+    """Activation ``code`` of one value, as :func:`_activate_row`."""
+    if code == 1:
+        return 1.0 - 2.0 / (np.exp(2.0 * x) + 1.0)
+    if code == 2:
+        return 1.0 / (1.0 + np.exp(-x))
+    if code == 3:
+        return x if x > 0.0 else 0.0
+    if code == 4:
+        return np.exp(-x * x)
+    if code == 5:
+        return np.sin(x)
+    return x
+
+
+@numba.njit(cache=True, inline="always")
+def _activate_row(code, buf, i, width):
+    """Apply activation ``code`` to ``buf[i, :width]`` (tanh through exp: faster than libm's)."""
+    if code == 1:
+        for a in range(width):
+            buf[i, a] = 1.0 - 2.0 / (np.exp(2.0 * buf[i, a]) + 1.0)
+    elif code == 2:
+        for a in range(width):
+            buf[i, a] = 1.0 / (1.0 + np.exp(-buf[i, a]))
+    elif code == 3:
+        for a in range(width):
+            if buf[i, a] < 0.0:
+                buf[i, a] = 0.0
+    elif code == 4:
+        for a in range(width):
+            buf[i, a] = np.exp(-buf[i, a] * buf[i, a])
+    elif code == 5:
+        for a in range(width):
+            buf[i, a] = np.sin(buf[i, a])
+
+
+@numba.njit(cache=True, inline="always")
+def _forward_block(g, k0, width, x, node_start, bias, act, indptr, mid, src, w, out_pos, buf, out):
+    """Agents ``k0 .. k0 + width - 1``, all of genome ``g``: node values in ``buf``, outputs."""
+    start = node_start[g]
+    if width == 1:  # one agent: accumulate in a register
+        for j in range(start, node_start[g + 1]):
+            total = bias[j]
+            for e in range(indptr[j], mid[j]):
+                total += w[e] * x[k0, src[e]]
+            for e in range(mid[j], indptr[j + 1]):
+                total += w[e] * buf[src[e], 0]
+            buf[j - start, 0] = _activate(act[j], total)
+        for o in range(out.shape[1]):
+            out[k0, o] = buf[out_pos[g, o], 0]
+        return
+    for j in range(start, node_start[g + 1]):
+        i = j - start
+        b = bias[j]
+        for a in range(width):
+            buf[i, a] = b
+        for e in range(indptr[j], mid[j]):
+            q = src[e]
+            weight = w[e]
+            for a in range(width):
+                buf[i, a] += weight * x[k0 + a, q]
+        for e in range(mid[j], indptr[j + 1]):
+            q = src[e]
+            weight = w[e]
+            for a in range(width):
+                buf[i, a] += weight * buf[q, a]
+        _activate_row(act[j], buf, i, width)
+    for o in range(out.shape[1]):
+        q = out_pos[g, o]
+        for a in range(width):
+            out[k0 + a, o] = buf[q, a]
+
+
+@numba.njit(cache=True, inline="always")
+def _task(t, per_genome, n_blocks):
+    """Genome, first agent and width of block task ``t`` (blocks of a genome split evenly)."""
+    g = t // n_blocks
+    b = t - g * n_blocks
+    size = (per_genome + n_blocks - 1) // n_blocks
+    first = b * size
+    width = min(size, per_genome - first)
+    return g, g * per_genome + first, width
+
+
+@numba.njit(cache=True, nogil=True)
+def _forward_serial(x, per_genome, node_start, bias, act, indptr, mid, src, w, out_pos, out):
+    n_blocks = (per_genome + _BLOCK - 1) // _BLOCK
+    n_genomes = node_start.shape[0] - 1
+    max_nodes = 1
+    for g in range(n_genomes):
+        max_nodes = max(max_nodes, node_start[g + 1] - node_start[g])
+    buf = np.empty((max_nodes, _BLOCK))
+    for t in range(n_genomes * n_blocks):
+        g, k0, width = _task(t, per_genome, n_blocks)
+        _forward_block(
+            g, k0, width, x, node_start, bias, act, indptr, mid, src, w, out_pos, buf, out
+        )
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _forward_parallel(x, per_genome, node_start, bias, act, indptr, mid, src, w, out_pos, out):
+    n_blocks = (per_genome + _BLOCK - 1) // _BLOCK
+    n_genomes = node_start.shape[0] - 1
+    max_nodes = 1
+    for g in range(n_genomes):
+        max_nodes = max(max_nodes, node_start[g + 1] - node_start[g])
+    for t in prange(n_genomes * n_blocks):
+        buf = np.empty((max_nodes, _BLOCK))
+        g, k0, width = _task(t, per_genome, n_blocks)
+        _forward_block(
+            g, k0, width, x, node_start, bias, act, indptr, mid, src, w, out_pos, buf, out
+        )
+
+
+def _threads_pay_off(work: int) -> bool:
+    """Whether the multi-threaded kernel is the better default for ``work`` per call.
+
+    Threads need enough work to amortise their start-up and barrier, and idle
+    cores: on a busy machine a worker waits for a time slice at each barrier.
+    """
+    if numba.get_num_threads() < 2 or work < _PARALLEL_MIN_WORK:
+        return False
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return True
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return load < (cores or 1) - 0.5
+
+
+# -----------------------------------------------------------------------------
+# The population policy
+
+
+class GenomePopulation:
+    """P compiled genomes playing together: the NEAT population policy.
+
+    A batch of ``n`` observations (``n`` a multiple of P) is split in P
+    consecutive blocks of ``M = n // P`` agents: agent ``k`` uses genome
+    ``k // M``. ``reset(n_agents)`` (called by :func:`amaze.policy.run_episodes`)
+    checks the batch size. ``parallel`` picks the multi-threaded kernel (both
+    give identical results); ``None`` decides from the batch size and the
+    machine's load. Build it with :meth:`from_genomes` or
+    :func:`policy_from_arrays`; ``networks`` are arrays of :func:`genome_to_arrays`.
+    """
+
+    def __init__(
+        self,
+        networks: Sequence[Mapping[str, np.ndarray]],
+        robot: Robot | str,
+        *,
+        parallel: bool | None = None,
+    ) -> None:
+        self.robot = as_robot(robot)
+        self.n_inputs, self.n_outputs = robot_io(self.robot)
+        if not networks:
+            raise ValueError("a genome population needs at least one genome")
+        self.n_policies = len(networks)
+        self.parallel = parallel
+        n_inputs = self.n_inputs
+        sizes = np.asarray([len(a["bias"]) for a in networks], dtype=np.int64)
+        edges = np.asarray([len(a["weights"]) for a in networks], dtype=np.int64)
+        self._node_start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self._bias = np.concatenate([a["bias"] for a in networks]).astype(np.float64)
+        self._act = np.concatenate([a["activation"] for a in networks]).astype(np.int64)
+        counts = np.concatenate([np.diff(a["indptr"]) for a in networks]).astype(np.int64)
+        sources = np.concatenate([a["sources"] for a in networks]).astype(np.int64)
+        weights = np.concatenate([a["weights"] for a in networks]).astype(np.float64)
+        for arrays in networks:
+            if len(arrays["outputs"]) != self.n_outputs:
+                raise EvolutionConfigError(
+                    f"a genome has {len(arrays['outputs'])} outputs, "
+                    f"robot {self.robot} needs {self.n_outputs}"
+                )
+        self._out_pos = np.stack([a["outputs"] for a in networks]).astype(np.int64)
+        # each node's incoming connections: from inputs first (up to ``mid``), then from
+        # nodes (sources as node indices); input weights take the input scaling (1/255
+        # for gray levels)
+        target = np.repeat(np.arange(len(counts)), counts)
+        from_input = sources < n_inputs
+        order = np.lexsort((~from_input, target))
+        self._indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self._mid = self._indptr[:-1] + np.bincount(
+            target[from_input], minlength=len(counts)
+        ).astype(np.int64)
+        divisor = 1.0 if self.robot.discrete_inputs else 255.0
+        self._src = np.where(from_input, sources, sources - n_inputs)[order].astype(np.int64)
+        self._w = np.where(from_input, weights / divisor, weights)[order]
+        self._mean_edges = float(edges.mean())
+
+    @classmethod
+    def from_genomes(
+        cls, genomes: Sequence[Any], robot: Robot | str, *, parallel: bool | None = None
+    ) -> GenomePopulation:
+        """Compile NEAT genomes (all for ``robot``) into one population policy."""
+        robot = as_robot(robot)
+        n_inputs, n_outputs = robot_io(robot)
+        networks = []
+        for genome in genomes:
+            if (genome.n_inputs, genome.n_outputs) != (n_inputs, n_outputs):
+                raise EvolutionConfigError(
+                    f"a genome with {genome.n_inputs} inputs and {genome.n_outputs} outputs "
+                    f"does not fit robot {robot} ({n_inputs} inputs, {n_outputs} outputs)"
+                )
+            networks.append(genome_to_arrays(genome)[0])
+        return cls(networks, robot, parallel=parallel)
+
+    def reset(self, n_agents: int) -> None:
+        """Check that batches of ``n_agents`` observations can be shared by the P genomes."""
+        self._agents_per_genome(int(n_agents))
+
+    def _agents_per_genome(self, n: int) -> int:
+        if n < self.n_policies or n % self.n_policies:
+            raise ValueError(
+                f"{n} agents cannot be shared equally by {self.n_policies} genomes "
+                "(n_agents must be a positive multiple of the number of genomes)"
+            )
+        return n // self.n_policies
+
+    def _inputs(self, observations: np.ndarray) -> np.ndarray:
+        obs = np.asarray(observations)
+        if self.robot.discrete_inputs:
+            if obs.ndim != 2 or obs.shape[1] != self.n_inputs:
+                raise ValueError(f"expected observations (n, {self.n_inputs}), got {obs.shape}")
+            return np.ascontiguousarray(obs)
+        v = int(self.robot.vision)
+        if obs.shape[1:] not in ((1, v, v), (v, v)):
+            raise ValueError(f"expected images (n, 1, {v}, {v}), got {obs.shape}")
+        return np.ascontiguousarray(obs).reshape(obs.shape[0], v * v)
+
+    def outputs(self, observations: np.ndarray) -> np.ndarray:
+        """The output node values, float64 ``(n, n_outputs)``."""
+        x = self._inputs(observations)
+        n = x.shape[0]
+        per_genome = self._agents_per_genome(n)
+        out = np.empty((n, self.n_outputs), dtype=np.float64)
+        parallel = self.parallel
+        if parallel is None:
+            parallel = _threads_pay_off(int(n * max(self._mean_edges, 1.0)))
+        kernel = _forward_parallel if parallel else _forward_serial
+        kernel(
+            x,
+            per_genome,
+            self._node_start,
+            self._bias,
+            self._act,
+            self._indptr,
+            self._mid,
+            self._src,
+            self._w,
+            self._out_pos,
+            out,
+        )
+        return out
+
+    def __call__(self, observations: np.ndarray) -> np.ndarray:
+        """Actions: int64 argmax (E, N, W, S) or float64 accelerations ``(n, 2)``."""
+        out = self.outputs(observations)
+        if self.robot.discrete_outputs:
+            return np.argmax(out, axis=1).astype(np.int64)
+        return out
+
+
+def policy_from_arrays(
+    arrays: Mapping[str, np.ndarray], architecture: Mapping[str, Any], robot: Robot | str
+) -> GenomePopulation:
+    """A population of one compiled genome (from :func:`genome_to_arrays`) for ``robot``.
+
+    It plays any number of agents, all with that genome. The arrays are
+    checked (they may come from an agent file): missing keys, inconsistent
+    sizes, connections that are not feed-forward or a robot that does not fit
+    raise :class:`~evolution.EvolutionConfigError`.
+    """
+    robot = as_robot(robot)
+    n_inputs, n_outputs = robot_io(robot)
+    if (int(architecture.get("n_inputs", -1)), int(architecture.get("n_outputs", -1))) != (
+        n_inputs,
+        n_outputs,
+    ):
+        raise EvolutionConfigError(
+            f"a NEAT agent with {architecture.get('n_inputs')} inputs and "
+            f"{architecture.get('n_outputs')} outputs does not fit robot {robot} "
+            f"({n_inputs} inputs, {n_outputs} outputs)"
+        )
+    return GenomePopulation([_checked_arrays(arrays, architecture)], robot)

@@ -1,0 +1,864 @@
+"""Fixed-topology networks as flat parameter vectors, a whole population per forward pass.
+
+A :class:`NetworkSpec` describes one architecture (robot, hidden layers,
+activation, image encoder); a parameter vector of ``spec.n_params`` floats is
+one individual, and :meth:`NetworkSpec.population` turns a ``(P, n_params)``
+array into a :class:`NetworkPopulation`, the population policy that plays
+all ``P`` individuals at once on the batch engine (see
+:mod:`evolution.population`: agent ``k`` belongs to individual ``k // M``).
+This is what CMA-ES optimises.
+
+**Inputs.** Discrete-input robots (``DD``) see their 8 floats as they are.
+Image robots (hybrid ``CD``/``H`` and continuous ``CC``) see a ``v x v``
+uint8 image (``v`` = 11, 15...). Evolving a weight per pixel would give
+CMA-ES thousands of parameters (225 x 16 for one hidden layer of 16 on
+``H15``), far past where a full covariance matrix is practical, so the image
+goes through a fixed, non-evolved encoder first: **average pooling to a
+``pool x pool`` grid** (default 5), pixels scaled to [0, 1]. The grid's
+block edges are ``floor(linspace(0, v, pool + 1) + 0.5)``: 3 x 3 pixel
+blocks for ``v = 15``, blocks of 2, 2, 3, 2, 2 pixels for ``v = 11``. The
+pooled grid keeps what a cell shows: walls (the border blocks), the origin
+marker (a border block's middle), and a sign's direction (an arrow's head
+weighs more than its tail). ``pool = v`` feeds the raw pixels.
+
+**Layers.** Dense layers ``n_inputs -> hidden... -> n_outputs`` with the
+hidden activation (``tanh``, ``relu``, ``sigmoid``, ``identity``) on hidden
+layers only; ``hidden = ()`` is a linear policy. Outputs: 4 logits for
+discrete actions, the action being the first maximal one (E, N, W, S order);
+2 for continuous actions, squashed by tanh into accelerations in [-1, 1].
+
+**Parameter layout.** For each layer in order, its weights ``(d_in, d_out)``
+row-major, then its biases ``(d_out,)`` (:meth:`NetworkSpec.unflatten`).
+Parameter counts (weights + biases):
+
+=========  =======  =========  ===========  ================
+robot      inputs   linear     hidden (16)  hidden (32, 32)
+=========  =======  =========  ===========  ================
+DD         8        36         212          1 476
+CD15/CD11  25       104        484          2 020
+CC15/CC11  25       52         450          1 954
+=========  =======  =========  ===========  ================
+
+**Speed.** The forward pass is a numba kernel working on blocks of up to 64
+agents side by side (the SIMD axis): agents of one individual, or, when a
+population has more individuals than episodes each (a few mazes), the same
+episode of 64 individuals. It skips the agents whose scored episode has
+ended (the ``retire`` hook of :func:`amaze.policy.run_episodes`). Arithmetic
+is float32, in the same order in both kinds of blocks; tanh is a rational
+approximation (Eigen's, within 4e-7 of the exact value). So an individual
+acts the same, bit for bit, whether it is evaluated in a population of any
+size, alone (:mod:`evolution.agent_file`), or on one thread or several.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numba
+import numpy as np
+
+from amaze.robot import Robot, RobotStringError, as_robot
+from evolution import EvolutionConfigError
+
+__all__ = [
+    "ACTIVATIONS",
+    "DEFAULT_POOL",
+    "NetworkPopulation",
+    "NetworkSpec",
+]
+
+#: Hidden-layer activations.
+ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
+#: Default side of the pooled grid of image robots.
+DEFAULT_POOL = 5
+#: Inputs of discrete-input robots, actions of discrete-output robots, accelerations.
+N_DISCRETE_INPUTS = 8
+N_DISCRETE_ACTIONS = 4
+N_CONTINUOUS_OUTPUTS = 2
+#: Widest hidden layer accepted (a sanity bound, far above what evolution uses).
+MAX_WIDTH = 4096
+
+_ACTIVATION_CODES = {name: code for code, name in enumerate(ACTIVATIONS)}
+_TANH, _RELU, _SIGMOID, _IDENTITY = range(4)
+_MODE_DISCRETE, _MODE_CONTINUOUS = 0, 1
+
+#: Agents processed together by the kernel (its SIMD axis).
+_BLOCK = 64
+_NO_DISCRETE = np.zeros(0, dtype=np.int64)
+_NO_CONTINUOUS = np.zeros((0, 2), dtype=np.float64)
+#: Multiply-adds per call above which the multi-threaded kernel is the default.
+_PARALLEL_MIN_WORK = 1 << 18
+
+
+# -----------------------------------------------------------------------------
+# Specification
+
+
+def _check_int(name: str, value: Any, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise EvolutionConfigError(f"{name} {value!r} is not an integer")
+    if not low <= value <= high:
+        raise EvolutionConfigError(f"{name} {value!r} must be in [{low}, {high}]")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class NetworkSpec:
+    """A fixed-topology network for one robot (see the module docstring).
+
+    ``robot`` is stored as its canonical string (``DD``, ``CD15``, ``CC11``);
+    ``pool`` is the side of the pooled image grid, ``None`` for discrete-input
+    robots (image robots default to :data:`DEFAULT_POOL`).
+    """
+
+    robot: str = "DD"
+    hidden: tuple[int, ...] = ()
+    activation: str = "tanh"
+    pool: int | None = None
+
+    def __post_init__(self) -> None:
+        try:
+            robot = as_robot(self.robot)
+        except RobotStringError as error:
+            raise EvolutionConfigError(str(error)) from None
+        except (TypeError, AttributeError):
+            raise EvolutionConfigError(f"robot {self.robot!r} is not a robot string") from None
+        object.__setattr__(self, "robot", robot.to_string())
+        hidden = self.hidden
+        if isinstance(hidden, int | np.integer) and not isinstance(hidden, bool):
+            hidden = (hidden,)
+        if isinstance(hidden, str) or not isinstance(hidden, Sequence):
+            raise EvolutionConfigError(f"hidden {hidden!r} must be a list of layer widths")
+        object.__setattr__(
+            self, "hidden", tuple(_check_int("hidden layer width", h, 1, MAX_WIDTH) for h in hidden)
+        )
+        if self.activation not in ACTIVATIONS:
+            raise EvolutionConfigError(
+                f"activation {self.activation!r} is not one of {', '.join(ACTIVATIONS)}"
+            )
+        if robot.discrete_inputs:
+            if self.pool is not None:
+                raise EvolutionConfigError(
+                    f"pool {self.pool!r}: robot {robot} has no image to pool (give none)"
+                )
+        else:
+            pool = DEFAULT_POOL if self.pool is None else self.pool
+            object.__setattr__(self, "pool", _check_int("pool", pool, 1, int(robot.vision)))
+
+    # -- description ----------------------------------------------------------
+
+    @property
+    def robot_info(self) -> Robot:
+        """The :class:`~amaze.robot.Robot` of :attr:`robot`."""
+        return as_robot(self.robot)
+
+    @property
+    def n_inputs(self) -> int:
+        """Inputs of the first dense layer: 8, or ``pool * pool`` pooled pixels."""
+        return N_DISCRETE_INPUTS if self.pool is None else self.pool * self.pool
+
+    @property
+    def n_outputs(self) -> int:
+        """4 logits (discrete actions) or 2 accelerations (continuous actions)."""
+        return N_DISCRETE_ACTIONS if self.robot_info.discrete_outputs else N_CONTINUOUS_OUTPUTS
+
+    @property
+    def layer_sizes(self) -> tuple[int, ...]:
+        """``(n_inputs, *hidden, n_outputs)``."""
+        return (self.n_inputs, *self.hidden, self.n_outputs)
+
+    @property
+    def layer_shapes(self) -> tuple[tuple[int, int], ...]:
+        """``(d_in, d_out)`` of each dense layer, in order."""
+        sizes = self.layer_sizes
+        return tuple(itertools.pairwise(sizes))
+
+    @property
+    def n_params(self) -> int:
+        """Length of a parameter vector: all weights and biases."""
+        return sum(d_in * d_out + d_out for d_in, d_out in self.layer_shapes)
+
+    # -- (de)serialisation ----------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able description (:meth:`from_dict` reads it back)."""
+        return {
+            "robot": self.robot,
+            "hidden": list(self.hidden),
+            "activation": self.activation,
+            "pool": self.pool,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> NetworkSpec:
+        """The spec described by ``data`` (an optional ``"type": "mlp"`` is accepted).
+
+        Unknown keys and bad values raise :class:`EvolutionConfigError`.
+        """
+        if not isinstance(data, Mapping):
+            raise EvolutionConfigError(f"a network spec must be a mapping, not {data!r}")
+        data = dict(data)
+        kind = data.pop("type", "mlp")
+        if kind != "mlp":
+            raise EvolutionConfigError(f"network type {kind!r} is not 'mlp'")
+        unknown = sorted(set(data) - {"robot", "hidden", "activation", "pool"})
+        if unknown:
+            raise EvolutionConfigError(f"unknown network spec key(s): {', '.join(unknown)}")
+        if "robot" not in data:
+            raise EvolutionConfigError("network spec: 'robot' is missing")
+        hidden = data.get("hidden", ())
+        if isinstance(hidden, list):
+            hidden = tuple(hidden)
+        return cls(
+            robot=data["robot"],
+            hidden=hidden,
+            activation=data.get("activation", "tanh"),
+            pool=data.get("pool"),
+        )
+
+    # -- parameters -----------------------------------------------------------
+
+    def initial_params(self, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+        """Random parameters: weights ``N(0, 1 / d_in)``, biases zero; float64.
+
+        One vector ``(n_params,)``, or ``(n, n_params)`` when ``n`` is given.
+        """
+        count = 1 if n is None else _check_int("n", n, 1, 1 << 30)
+        params = np.zeros((count, self.n_params), dtype=np.float64)
+        offset = 0
+        for d_in, d_out in self.layer_shapes:
+            size = d_in * d_out
+            params[:, offset : offset + size] = rng.normal(0.0, 1.0 / np.sqrt(d_in), (count, size))
+            offset += size + d_out
+        return params[0] if n is None else params
+
+    def unflatten(self, params: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The ``(weights (d_in, d_out), biases (d_out,))`` of each layer of one vector."""
+        params = np.asarray(params)
+        if params.shape != (self.n_params,):
+            raise EvolutionConfigError(
+                f"a parameter vector of {self.n_params} values was expected, got {params.shape}"
+            )
+        layers, offset = [], 0
+        for d_in, d_out in self.layer_shapes:
+            weights = params[offset : offset + d_in * d_out].reshape(d_in, d_out)
+            offset += d_in * d_out
+            layers.append((weights, params[offset : offset + d_out]))
+            offset += d_out
+        return layers
+
+    def encode(self, observations: np.ndarray) -> np.ndarray:
+        """float32 ``(n, n_inputs)``: the network inputs of a batch of observations.
+
+        The 8 floats of discrete inputs; the pooled image (block means of the
+        pixels / 255) of image robots. The kernel does the same, fused.
+        """
+        observations = np.asarray(observations)
+        n = observations.shape[0]
+        if self.pool is None:
+            return observations.reshape(n, -1).astype(np.float32)
+        v = int(self.robot_info.vision)
+        images = observations.reshape(n, v, v).astype(np.float64)
+        edges = _pool_edges(v, self.pool)
+        out = np.empty((n, self.pool, self.pool), dtype=np.float64)
+        for r in range(self.pool):
+            for c in range(self.pool):
+                block = images[:, edges[r] : edges[r + 1], edges[c] : edges[c + 1]]
+                out[:, r, c] = block.mean(axis=(1, 2)) / 255.0
+        return out.reshape(n, -1).astype(np.float32)
+
+    def population(self, params: np.ndarray, *, parallel: bool | None = None) -> NetworkPopulation:
+        """The population policy of ``params`` (``(P, n_params)``, one row per individual)."""
+        return NetworkPopulation(self, params, parallel=parallel)
+
+
+def _pool_edges(vision: int, pool: int) -> np.ndarray:
+    """Block edges of the pooled grid along one image axis (``pool + 1`` integers)."""
+    return np.floor(np.linspace(0.0, vision, pool + 1) + 0.5).astype(np.int64)
+
+
+# -----------------------------------------------------------------------------
+# Compiled forward pass
+
+
+@numba.njit(cache=True)
+def _u(index):
+    """An index known to be non-negative, as unsigned (no wraparound check: vectorises)."""
+    return numba.uint64(index)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _tanh(v):
+    """float32 tanh: Eigen's rational approximation on [-7.9053, 7.9053], ±1 beyond."""
+    c = np.float32(7.90531110763549805)
+    x = v if v < c else c
+    x = x if x > -c else -c
+    x2 = x * x
+    p = np.float32(-2.76076847742355e-16)
+    p = x2 * p + np.float32(2.00018790482477e-13)
+    p = x2 * p + np.float32(-8.60467152213735e-11)
+    p = x2 * p + np.float32(5.12229709037114e-08)
+    p = x2 * p + np.float32(1.48572235717979e-05)
+    p = x2 * p + np.float32(6.37261928875436e-04)
+    p = x2 * p + np.float32(4.89352455891786e-03)
+    q = np.float32(1.19825839466702e-06)
+    q = x2 * q + np.float32(1.18534705686654e-04)
+    q = x2 * q + np.float32(2.26843463243900e-03)
+    q = x2 * q + np.float32(4.89352518554385e-03)
+    return x * p / q
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _activate(a, b, d_out, nb, activation):
+    """``a = activation(b)`` on the first ``d_out x nb`` entries."""
+    for o in range(d_out):
+        if activation == _TANH:
+            for r in range(nb):
+                a[o, r] = _tanh(b[o, r])
+        elif activation == _RELU:
+            for r in range(nb):
+                v = b[o, r]
+                a[o, r] = v if v > 0 else np.float32(0.0)
+        elif activation == _SIGMOID:
+            for r in range(nb):
+                a[o, r] = np.float32(0.5) + np.float32(0.5) * _tanh(np.float32(0.5) * b[o, r])
+        else:
+            for r in range(nb):
+                a[o, r] = b[o, r]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _emit(b, agents, nb, d_last, mode, values, discrete, continuous):
+    """Write the outputs ``b`` of the block's agents, and their actions."""
+    for r in range(nb):
+        k = agents[r]
+        for o in range(d_last):
+            values[k, o] = b[o, r]
+        if mode == _MODE_DISCRETE:
+            best = 0
+            top = b[0, r]
+            for o in range(1, d_last):
+                if b[o, r] > top:
+                    top = b[o, r]
+                    best = o
+            discrete[k] = best
+        else:
+            for o in range(d_last):
+                continuous[k, o] = _tanh(b[o, r])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _block_of_individual(
+    p,
+    s0,
+    s1,
+    x,
+    rows,
+    params,
+    layers,
+    activation,
+    mode,
+    a,
+    b,
+    agents,
+    values,
+    discrete,
+    continuous,
+):
+    """Agents ``rows[s0:s1]``, all of individual ``p``: one weight for the whole SIMD axis."""
+    nb = s1 - s0
+    n_layers = layers.shape[0]
+    for r in range(nb):
+        k = rows[s0 + r]
+        agents[r] = k
+        for i in range(layers[0, 0]):
+            a[i, r] = x[k, i]
+    for layer in range(n_layers):
+        d_in = layers[layer, 0]
+        d_out = layers[layer, 1]
+        w0 = layers[layer, 2]
+        b0 = layers[layer, 3]
+        for o in range(d_out):
+            bias = params[p, b0 + o]
+            for r in range(nb):
+                b[o, r] = bias
+        for i in range(d_in):
+            for o in range(d_out):
+                weight = params[p, w0 + i * d_out + o]
+                for r in range(nb):
+                    b[o, r] += weight * a[i, r]
+        if layer < n_layers - 1:
+            _activate(a, b, d_out, nb, activation)
+    _emit(b, agents, nb, layers[n_layers - 1, 1], mode, values, discrete, continuous)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _block_of_episode(
+    e,
+    p0,
+    p1,
+    m,
+    x,
+    params_t,
+    layers,
+    activation,
+    mode,
+    a,
+    b,
+    agents,
+    values,
+    discrete,
+    continuous,
+):
+    """Episode ``e`` of individuals ``p0 .. p1 - 1``: weights vary along the SIMD axis."""
+    nb = p1 - p0
+    n_layers = layers.shape[0]
+    for r in range(nb):
+        k = (p0 + r) * m + e
+        agents[r] = k
+        for i in range(layers[0, 0]):
+            a[i, r] = x[k, i]
+    for layer in range(n_layers):
+        d_in = layers[layer, 0]
+        d_out = layers[layer, 1]
+        w0 = layers[layer, 2]
+        b0 = layers[layer, 3]
+        for o in range(d_out):
+            for r in range(nb):
+                b[o, r] = params_t[b0 + o, _u(p0 + r)]
+        for i in range(d_in):
+            for o in range(d_out):
+                w = w0 + i * d_out + o
+                for r in range(nb):
+                    b[o, r] += params_t[w, _u(p0 + r)] * a[i, r]
+        if layer < n_layers - 1:
+            _activate(a, b, d_out, nb, activation)
+    _emit(b, agents, nb, layers[n_layers - 1, 1], mode, values, discrete, continuous)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _run_block(
+    j,
+    by_episode,
+    m,
+    x,
+    rows,
+    blocks,
+    params,
+    params_t,
+    layers,
+    activation,
+    mode,
+    a,
+    b,
+    agents,
+    values,
+    discrete,
+    continuous,
+):
+    if by_episode:
+        _block_of_episode(
+            blocks[j, 0],
+            blocks[j, 1],
+            blocks[j, 2],
+            m,
+            x,
+            params_t,
+            layers,
+            activation,
+            mode,
+            a,
+            b,
+            agents,
+            values,
+            discrete,
+            continuous,
+        )
+    else:
+        _block_of_individual(
+            blocks[j, 0],
+            blocks[j, 1],
+            blocks[j, 2],
+            x,
+            rows,
+            params,
+            layers,
+            activation,
+            mode,
+            a,
+            b,
+            agents,
+            values,
+            discrete,
+            continuous,
+        )
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _forward_serial(
+    by_episode,
+    m,
+    x,
+    rows,
+    blocks,
+    params,
+    params_t,
+    layers,
+    width,
+    activation,
+    mode,
+    values,
+    discrete,
+    continuous,
+):
+    a = np.empty((width, _BLOCK), dtype=np.float32)
+    b = np.empty((width, _BLOCK), dtype=np.float32)
+    agents = np.empty(_BLOCK, dtype=np.int64)
+    for j in range(blocks.shape[0]):
+        _run_block(
+            j,
+            by_episode,
+            m,
+            x,
+            rows,
+            blocks,
+            params,
+            params_t,
+            layers,
+            activation,
+            mode,
+            a,
+            b,
+            agents,
+            values,
+            discrete,
+            continuous,
+        )
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _forward_parallel(
+    by_episode,
+    m,
+    x,
+    rows,
+    blocks,
+    params,
+    params_t,
+    layers,
+    width,
+    activation,
+    mode,
+    values,
+    discrete,
+    continuous,
+):
+    for j in numba.prange(blocks.shape[0]):
+        a = np.empty((width, _BLOCK), dtype=np.float32)
+        b = np.empty((width, _BLOCK), dtype=np.float32)
+        agents = np.empty(_BLOCK, dtype=np.int64)
+        _run_block(
+            j,
+            by_episode,
+            m,
+            x,
+            rows,
+            blocks,
+            params,
+            params_t,
+            layers,
+            activation,
+            mode,
+            a,
+            b,
+            agents,
+            values,
+            discrete,
+            continuous,
+        )
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _pool(images, rows, edges, scale, out):
+    """Pooled features of the listed agents: block sums of the pixels times ``scale``.
+
+    Each band of image rows is summed column-wise first (contiguous, vectorised),
+    then the band's column sums are cut into blocks.
+    """
+    v = images.shape[2]
+    g = edges.shape[0] - 1
+    band = np.empty(v, dtype=np.int32)
+    for j in range(rows.shape[0]):
+        k = rows[j]
+        for gr in range(g):
+            for c in range(v):
+                band[c] = 0
+            for r in range(edges[gr], edges[gr + 1]):
+                for c in range(v):
+                    band[c] += images[k, r, c]
+            for gc in range(g):
+                total = 0
+                for c in range(edges[gc], edges[gc + 1]):
+                    total += band[c]
+                f = gr * g + gc
+                out[k, f] = np.float32(total) * scale[f]
+
+
+def _threads_pay_off(work: int) -> bool:
+    """Whether the multi-threaded kernel is the better default for ``work`` multiply-adds.
+
+    As for the batch engine: only with enough work per call and idle cores
+    (by the 1-minute load average), since a thread that waits for a busy core
+    at the barrier makes a call many times slower.
+    """
+    if numba.get_num_threads() < 2 or work < _PARALLEL_MIN_WORK:
+        return False
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return True
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return load < (cores or 1) - 0.5
+
+
+# -----------------------------------------------------------------------------
+# Population policy
+
+
+class NetworkPopulation:
+    """``P`` networks of one :class:`NetworkSpec`, played as one population policy.
+
+    Called with a batch of ``P * M`` observations (gymnasium format), agent
+    ``k`` acts with the network of individual ``k // M``: int64 actions
+    ``(P*M,)`` (argmax, first maximum) for discrete outputs, float64
+    accelerations ``(P*M, 2)`` in [-1, 1] for continuous ones. A population
+    of one plays any number of agents (:mod:`evolution.agent_file`).
+
+    ``reset(n_agents)`` starts a run; ``retire(agents)`` (called by
+    :func:`amaze.policy.run_episodes`) lets the forward pass skip agents whose
+    scored episode has ended (those it skips get action 0, or no acceleration)
+    until the next ``reset``, or until all agents are retired (the run is over).
+    ``parallel`` picks the multi-threaded kernel (default: when the work is
+    large and cores are idle); the actions do not depend on it. Instances
+    pickle as their spec and parameters.
+    """
+
+    def __init__(
+        self, spec: NetworkSpec, params: np.ndarray, *, parallel: bool | None = None
+    ) -> None:
+        if not isinstance(spec, NetworkSpec):
+            raise EvolutionConfigError(f"expected a NetworkSpec, not {spec!r}")
+        params = np.asarray(params)
+        if params.ndim == 1:
+            params = params[None]
+        if params.ndim != 2 or params.shape[1] != spec.n_params or params.shape[0] < 1:
+            raise EvolutionConfigError(
+                f"parameters must have shape (P, {spec.n_params}) for {spec.to_dict()},"
+                f" got {params.shape}"
+            )
+        if not np.all(np.isfinite(params)):
+            raise EvolutionConfigError("parameters must be finite numbers")
+        self.spec = spec
+        self.robot: Robot = spec.robot_info
+        self.params = np.ascontiguousarray(params, dtype=np.float32)
+        self.params.flags.writeable = False
+        self.n_policies = int(self.params.shape[0])
+        self.parallel = parallel
+        sizes = spec.layer_sizes
+        layers, offset = [], 0
+        for d_in, d_out in spec.layer_shapes:
+            layers.append((d_in, d_out, offset, offset + d_in * d_out))
+            offset += d_in * d_out + d_out
+        self._layers = np.array(layers, dtype=np.int64)
+        self._width = max(sizes)
+        self._macs = sum(d_in * d_out for d_in, d_out in spec.layer_shapes)
+        self._activation = _ACTIVATION_CODES[spec.activation]
+        self._mode = _MODE_DISCRETE if self.robot.discrete_outputs else _MODE_CONTINUOUS
+        self._vision = None if spec.pool is None else int(self.robot.vision)
+        if spec.pool is not None:
+            edges = _pool_edges(self._vision, spec.pool)
+            self._edges = edges
+            counts = np.outer(np.diff(edges), np.diff(edges)).ravel()
+            self._scale = (1.0 / (255.0 * counts)).astype(np.float32)
+        self._params_t = np.ascontiguousarray(self.params.T)
+        self._n_inputs = spec.n_inputs
+        self._n_outputs = spec.n_outputs
+        self._n_agents = -1
+        self._active: np.ndarray | None = None
+        self._dirty = True
+        self._by_episode = False
+        self._rows = np.zeros(0, dtype=np.int64)
+        self._blocks = np.zeros((0, 3), dtype=np.int64)
+        self._kernel = _forward_serial
+
+    def __len__(self) -> int:
+        return self.n_policies
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.spec, np.array(self.params)), {"parallel": self.parallel})
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.parallel = state.get("parallel")
+
+    def __repr__(self) -> str:
+        return f"NetworkPopulation({self.n_policies} x {self.spec!r})"
+
+    # -- population ------------------------------------------------------------
+
+    def subset(self, indices: Sequence[int] | np.ndarray) -> NetworkPopulation:
+        """The population of the individuals ``indices`` (in that order)."""
+        indices = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if indices.size == 0:
+            raise EvolutionConfigError("subset: give at least one individual")
+        if indices.min() < -self.n_policies or indices.max() >= self.n_policies:
+            raise EvolutionConfigError(f"subset: indices must be in [0, {self.n_policies})")
+        return NetworkPopulation(self.spec, self.params[indices], parallel=self.parallel)
+
+    def individual(self, index: int) -> NetworkPopulation:
+        """Individual ``index`` alone, as a policy for any number of agents."""
+        return self.subset([index])
+
+    # -- the policy protocol ---------------------------------------------------
+
+    def _episodes_per_individual(self, n_agents: int) -> int:
+        if n_agents < 1 or n_agents % self.n_policies:
+            raise EvolutionConfigError(
+                f"{n_agents} agents cannot be shared by {self.n_policies} individuals:"
+                " give M agents to each (P x M in all)"
+            )
+        return n_agents // self.n_policies
+
+    def reset(self, n_agents: int) -> None:
+        """Start a run of ``n_agents`` agents (``M = n_agents // P`` each); all agents act."""
+        self._episodes_per_individual(int(n_agents))
+        self._start(int(n_agents))
+
+    def _start(self, n_agents: int) -> None:
+        self._n_agents = n_agents
+        self._active = np.ones(n_agents, dtype=bool)
+        self._dirty = True
+
+    def retire(self, agents: np.ndarray) -> None:
+        """Stop computing ``agents`` (their actions are ignored) until the next reset.
+
+        Once every agent is retired (the end of a run), all act again.
+        """
+        if self._active is not None:
+            self._active[np.asarray(agents, dtype=np.int64)] = False
+            self._dirty = True
+            if not self._active.any():
+                self._n_agents = -1
+
+    def _plan(self, n_agents: int, m: int) -> tuple[bool, np.ndarray, np.ndarray]:
+        """How the kernel covers the active agents: ``(by_episode, rows, blocks)``.
+
+        A block puts up to 64 agents side by side on the SIMD axis: agents of
+        one individual (``(individual, start, stop)`` into ``rows``, the sorted
+        active agents), or, when individuals outnumber their episodes, the
+        same episode of consecutive individuals (``(episode, first, stop)``;
+        ``rows`` then lists the agents the blocks cover).
+        """
+        if n_agents != self._n_agents:
+            self._start(n_agents)
+        if self._dirty:
+            p_count = self.n_policies
+            self._by_episode = min(p_count, _BLOCK) > min(m, _BLOCK)
+            if self._by_episode:
+                active = self._active.reshape(p_count, m)
+                blocks = [
+                    (e, p0, min(p0 + _BLOCK, p_count))
+                    for e in range(m)
+                    for p0 in range(0, p_count, _BLOCK)
+                    if active[p0 : p0 + _BLOCK, e].any()
+                ]
+                self._blocks = np.array(blocks, dtype=np.int64).reshape(-1, 3)
+                rows = [np.arange(p0, p1) * m + e for e, p0, p1 in blocks]
+                self._rows = np.sort(np.concatenate(rows)) if rows else np.zeros(0, np.int64)
+            else:
+                rows = np.flatnonzero(self._active)
+                starts = np.searchsorted(rows, np.arange(p_count + 1) * m)
+                lengths = np.diff(starts)
+                counts = (lengths + _BLOCK - 1) // _BLOCK
+                owner = np.repeat(np.arange(p_count), counts)
+                first = np.repeat(starts[:-1], counts)
+                index = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+                begin = first + index * _BLOCK
+                end = np.minimum(begin + _BLOCK, np.repeat(starts[1:], counts))
+                self._blocks = np.stack([owner, begin, end], axis=1).astype(np.int64)
+                self._rows = rows.astype(np.int64)
+            self._rows = np.ascontiguousarray(self._rows, dtype=np.int64)
+            self._blocks = np.ascontiguousarray(self._blocks)
+            if self.parallel is None:
+                threads = _threads_pay_off(len(self._rows) * self._macs)
+                self._kernel = _forward_parallel if threads else _forward_serial
+            self._dirty = False
+        return self._by_episode, self._rows, self._blocks
+
+    def _run(self, observations: np.ndarray, all_rows: bool) -> tuple[np.ndarray, np.ndarray]:
+        """(network outputs float32 (n, n_outputs), actions) of a batch of observations."""
+        observations = np.asarray(observations)
+        n = int(observations.shape[0]) if observations.ndim else 0
+        m = self._episodes_per_individual(n)
+        if all_rows:
+            saved = (self._n_agents, self._active, self._dirty)
+            self._start(n)
+        by_episode, rows, blocks = self._plan(n, m)
+        if self._vision is None:
+            if observations.shape[1:] != (N_DISCRETE_INPUTS,):
+                raise EvolutionConfigError(
+                    f"expected observations of shape (n, 8), got {observations.shape}"
+                )
+            x = np.ascontiguousarray(observations, dtype=np.float32)
+        else:
+            v = self._vision
+            if observations.size != n * v * v:
+                raise EvolutionConfigError(
+                    f"expected {v}x{v} images for robot {self.robot}, got {observations.shape}"
+                )
+            images = np.ascontiguousarray(observations.reshape(n, v, v))
+            x = np.empty((n, self._n_inputs), dtype=np.float32)
+            _pool(images, rows, self._edges, self._scale, x)
+        values = np.empty((n, self._n_outputs), dtype=np.float32)
+        if self._mode == _MODE_DISCRETE:
+            actions = np.zeros(n, dtype=np.int64)
+            discrete, continuous = actions, _NO_CONTINUOUS
+        else:
+            actions = np.zeros((n, N_CONTINUOUS_OUTPUTS), dtype=np.float64)
+            discrete, continuous = _NO_DISCRETE, actions
+        kernel = self._kernel
+        if self.parallel is not None:
+            kernel = _forward_parallel if self.parallel else _forward_serial
+        kernel(
+            by_episode,
+            m,
+            x,
+            rows,
+            blocks,
+            self.params,
+            self._params_t,
+            self._layers,
+            self._width,
+            self._activation,
+            self._mode,
+            values,
+            discrete,
+            continuous,
+        )
+        if all_rows:
+            self._n_agents, self._active, self._dirty = saved
+        return values, actions
+
+    def __call__(self, observations: np.ndarray) -> np.ndarray:
+        """The actions of a batch of ``P * M`` observations (see the class docstring)."""
+        return self._run(observations, all_rows=False)[1]
+
+    def forward(self, observations: np.ndarray) -> np.ndarray:
+        """float32 ``(P*M, n_outputs)``: the output layer (logits, or pre-tanh accelerations).
+
+        Every agent is computed (retired ones too); the run's state is untouched.
+        """
+        return self._run(observations, all_rows=True)[0]

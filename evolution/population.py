@@ -1,0 +1,262 @@
+"""Population policies and their fitness: P individuals x M episodes on one batch engine.
+
+A **population policy** is a policy of the :mod:`amaze.policy` protocol that
+holds ``n_policies`` (P) individuals. It is played on one
+:class:`~amaze.engine.BatchEngine` of ``P * M`` agents: agent ``k`` belongs to
+individual ``k // M`` and plays episode ``k % M`` of the maze set (M episodes
+per individual, e.g. some mazes in their 4 rotations). Its ``reset(n_agents)``
+hook tells it ``M = n_agents // P``. Any plain policy is a population of one.
+
+:class:`PopulationEvaluator` prepares a maze set once (generation and
+compilation), plays a whole population on it with
+:func:`amaze.policy.run_episodes` and returns a :class:`PopulationResult`:
+per individual its fitness (the mean over its M episodes of the paper's
+normalised reward R̄, the success or the reference's pretty reward), success
+rate and mean rewards, and the budget spent: ``env_steps`` counts the steps of
+the scored episodes only (those an RL learner would have taken; the agents
+that keep stepping once their episode is over are not counted) and
+``seconds`` the wall-clock time.
+
+**Backends.** Algorithms only need an :class:`EvaluationBackend`, anything
+with ``evaluate(policy) -> PopulationResult``; :class:`PopulationEvaluator` is
+the local one. A distributed backend (Ray, say) can cut a population into
+chunks with ``policy.subset(indices)`` (:class:`SplittablePopulation`; network
+populations pickle as their spec and parameters), evaluate them on workers
+with their own :class:`PopulationEvaluator` and join the results with
+:meth:`PopulationResult.concatenate`, without the algorithms changing.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from amaze.engine import BatchEngine
+from amaze.maze import Maze, as_mazes
+from amaze.policy import EpisodeResults, run_episodes
+from amaze.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.robot import Robot, as_robot
+from amaze.spec import MazeSpec
+from amaze.suite import rotations
+from evolution import EvolutionConfigError
+
+__all__ = [
+    "FITNESS",
+    "EvaluationBackend",
+    "PopulationEvaluator",
+    "PopulationPolicy",
+    "PopulationResult",
+    "SplittablePopulation",
+    "with_rotations",
+]
+
+#: Fitness measures: the mean over an individual's episodes of one of these.
+FITNESS: tuple[str, ...] = ("paper_reward", "success", "pretty_reward")
+
+#: Engines kept by an evaluator (one per population size).
+_MAX_ENGINES = 4
+
+
+@runtime_checkable
+class PopulationPolicy(Protocol):
+    """P individuals acting together: agent ``k`` of ``P * M`` belongs to individual ``k // M``."""
+
+    n_policies: int
+    robot: Robot | str
+
+    def __call__(self, observations: np.ndarray) -> np.ndarray: ...
+
+    def reset(self, n_agents: int) -> None: ...
+
+
+@runtime_checkable
+class SplittablePopulation(PopulationPolicy, Protocol):
+    """A population that can be cut into parts (for distributed evaluation)."""
+
+    def subset(self, indices: Sequence[int] | np.ndarray) -> SplittablePopulation: ...
+
+
+@dataclass(frozen=True)
+class PopulationResult:
+    """Scores of P individuals over M episodes each (arrays of shape ``(P,)``).
+
+    ``episodes`` holds every episode (``P * M`` rows, agent ``k`` = individual
+    ``k // M``, episode ``k % M``); :meth:`per_episode` reshapes a field to ``(P, M)``.
+    """
+
+    fitness: np.ndarray
+    success_rate: np.ndarray
+    paper_reward: np.ndarray
+    pretty_reward: np.ndarray
+    env_steps: int
+    seconds: float
+    episodes: EpisodeResults | None = field(default=None, repr=False, compare=False)
+
+    def __len__(self) -> int:
+        return int(self.fitness.shape[0])
+
+    @property
+    def n_episodes(self) -> int:
+        """Episodes per individual (M); 0 when the episodes were not kept."""
+        if self.episodes is None or not len(self):
+            return 0
+        return len(self.episodes) // len(self)
+
+    def per_episode(self, name: str) -> np.ndarray:
+        """Field ``name`` of :class:`~amaze.policy.EpisodeResults` as a ``(P, M)`` array."""
+        if self.episodes is None:
+            raise EvolutionConfigError("this result does not hold its episodes")
+        if name not in {f.name for f in fields(EpisodeResults)}:
+            raise EvolutionConfigError(f"episodes have no field {name!r}")
+        return getattr(self.episodes, name).reshape(len(self), -1)
+
+    @property
+    def best(self) -> int:
+        """Index of the fittest individual (the first one on ties)."""
+        return int(np.argmax(self.fitness))
+
+    @classmethod
+    def concatenate(
+        cls, results: Sequence[PopulationResult], seconds: float | None = None
+    ) -> PopulationResult:
+        """The results of consecutive parts of a population, joined in order.
+
+        Steps add up; ``seconds`` defaults to the sum of the parts' times (pass
+        the wall-clock time when the parts ran concurrently).
+        """
+        if not results:
+            raise EvolutionConfigError("concatenate: give at least one result")
+        episodes = None
+        if all(r.episodes is not None for r in results):
+            episodes = EpisodeResults(
+                **{
+                    f.name: np.concatenate([getattr(r.episodes, f.name) for r in results])
+                    for f in fields(EpisodeResults)
+                }
+            )
+        return cls(
+            fitness=np.concatenate([r.fitness for r in results]),
+            success_rate=np.concatenate([r.success_rate for r in results]),
+            paper_reward=np.concatenate([r.paper_reward for r in results]),
+            pretty_reward=np.concatenate([r.pretty_reward for r in results]),
+            env_steps=sum(r.env_steps for r in results),
+            seconds=float(sum(r.seconds for r in results) if seconds is None else seconds),
+            episodes=episodes,
+        )
+
+
+class EvaluationBackend(Protocol):
+    """What the algorithms need to score a population (see the module docstring)."""
+
+    def evaluate(self, policy: PopulationPolicy) -> PopulationResult: ...
+
+
+def _maze_string(maze: Maze | MazeSpec | str) -> str:
+    if isinstance(maze, str):
+        return maze
+    if isinstance(maze, Maze | MazeSpec):
+        return maze.to_string()
+    raise EvolutionConfigError(f"expected a maze, a maze spec or a maze string, not {maze!r}")
+
+
+def with_rotations(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) -> list[str]:
+    """Every maze of ``mazes`` in its 4 rotations (start in each corner), maze by maze."""
+    items = [mazes] if isinstance(mazes, str | Maze | MazeSpec) else list(mazes)
+    return [rotated for maze in items for rotated in rotations(_maze_string(maze))]
+
+
+class PopulationEvaluator:
+    """Fitness of populations on one maze set (M episodes per individual).
+
+    ``mazes`` are played as given, once each (``rotations=True`` expands each
+    to its 4 rotations first, see :func:`with_rotations`). ``fitness`` is one of
+    :data:`FITNESS`. Mazes are generated and compiled once; one engine is kept
+    per population size.
+    """
+
+    def __init__(
+        self,
+        mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str],
+        robot: Robot | str,
+        *,
+        fitness: str = "paper_reward",
+        deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
+        rotations: bool = False,
+    ) -> None:
+        if fitness not in FITNESS:
+            raise EvolutionConfigError(f"fitness {fitness!r} is not one of {', '.join(FITNESS)}")
+        try:
+            self.robot = as_robot(robot)
+            if rotations:
+                mazes = with_rotations(mazes)
+            self.mazes: list[Maze] = as_mazes(mazes)
+        except EvolutionConfigError:
+            raise
+        except ValueError as error:
+            raise EvolutionConfigError(str(error)) from None
+        self.fitness = fitness
+        self.deadline_factor = float(deadline_factor)
+        self.maze_strings = [m.to_string() for m in self.mazes]
+        self._engines: dict[int, BatchEngine] = {}
+        self.engine(1)  # compiles the maze tables now, and checks the deadline factor
+
+    @property
+    def n_episodes(self) -> int:
+        """Episodes per individual (M): the number of mazes played."""
+        return len(self.mazes)
+
+    def engine(self, n_policies: int) -> BatchEngine:
+        """The engine of ``n_policies * M`` agents, agent ``k`` in maze ``k % M``."""
+        engine = self._engines.get(n_policies)
+        if engine is None:
+            if len(self._engines) >= _MAX_ENGINES:
+                self._engines.pop(next(iter(self._engines)))
+            try:
+                engine = BatchEngine(
+                    self.mazes, self.robot, n_policies * self.n_episodes,
+                    deadline_factor=self.deadline_factor,
+                )  # fmt: skip
+            except EvolutionConfigError:
+                raise
+            except ValueError as error:
+                raise EvolutionConfigError(str(error)) from None
+            self._engines[n_policies] = engine
+        return engine
+
+    def evaluate(self, policy: PopulationPolicy | Any) -> PopulationResult:
+        """Play every individual of ``policy`` once in each maze and score it."""
+        n_policies = getattr(policy, "n_policies", 1)
+        if isinstance(n_policies, bool) or not isinstance(n_policies, int | np.integer):
+            raise EvolutionConfigError(f"n_policies {n_policies!r} is not an integer")
+        if n_policies < 1:
+            raise EvolutionConfigError(f"n_policies {n_policies} must be positive")
+        robot = getattr(policy, "robot", None)
+        if robot is not None and as_robot(robot) != self.robot:
+            raise EvolutionConfigError(
+                f"the population drives {as_robot(robot)} robots, the evaluator {self.robot}"
+            )
+        engine = self.engine(int(n_policies))
+        started = time.perf_counter()
+        episodes = run_episodes(engine, policy)
+        seconds = time.perf_counter() - started
+        shape = (int(n_policies), self.n_episodes)
+        success = episodes.success.reshape(shape).mean(axis=1)
+        paper = episodes.paper_reward.reshape(shape).mean(axis=1)
+        pretty = episodes.pretty_reward.reshape(shape).mean(axis=1)
+        fitness = {"paper_reward": paper, "success": success, "pretty_reward": pretty}
+        return PopulationResult(
+            fitness=fitness[self.fitness].copy(),
+            success_rate=success,
+            paper_reward=paper,
+            pretty_reward=pretty,
+            env_steps=int(episodes.steps.sum()),
+            seconds=seconds,
+            episodes=episodes,
+        )
+
+    def __call__(self, policy: PopulationPolicy | Any) -> PopulationResult:
+        return self.evaluate(policy)

@@ -483,7 +483,8 @@ def make_controller(name: str, robot: Robot | str, *, seed: int = 0) -> Any:
     ``name`` is ``random`` (seeded with ``seed``), ``oracle``, the path of a
     tabular controller saved as JSON (which keeps its own seed; DD robots only),
     or the path of an agent saved by another package that registers a loader
-    for its file suffix (e.g. SB3 agents, ``.zip``, from ``rl_baselines``).
+    for its file suffix (SB3 agents, ``.zip``, from ``rl_baselines``; evolved
+    agents, ``.npz``, from ``evolution``).
     """
     robot = as_robot(robot)
     if name == "random":
@@ -510,7 +511,8 @@ def make_controller(name: str, robot: Robot | str, *, seed: int = 0) -> Any:
         return TabularController.load(name)
     raise ControllerError(
         f"unknown controller {name!r}: choose {', '.join(CONTROLLERS)},"
-        " or the path of a saved agent (tabular .json, or SB3 .zip with rl_baselines)"
+        " or the path of a saved agent (tabular .json, SB3 .zip with rl_baselines,"
+        " evolved .npz with evolution)"
     )
 
 

@@ -46,7 +46,6 @@ run is a faithful continuation, not a bit-identical replay.
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import time
@@ -61,6 +60,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from amaze.evaluation import Evaluator
 from amaze.policy import record_episode
 from amaze.robot import as_robot
+from amaze.runs import ProgressLog, write_json
 from amaze.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, rotations
 from amaze.trajectories import save_trajectory_png
 from rl_baselines import RLConfigError
@@ -143,13 +143,6 @@ class TrainResult:
     summary: dict[str, Any]
 
 
-def _write_json(path: Path, data: Any) -> None:
-    """Write ``data`` as JSON atomically (temp file, then rename)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    os.replace(tmp, path)
-
-
 def _tensorboard_dir(config: TrainConfig, out: Path) -> str | None:
     return str(out / "tensorboard") if config.tensorboard else None
 
@@ -181,6 +174,7 @@ class _RunState:
         self.out = out
         self.config = config
         self.checkpoints = out / "checkpoints"
+        self.progress = ProgressLog(out / "progress.csv", PROGRESS_FIELDS)
         self.seconds_before = 0.0
         self.best: tuple[float, float] | None = None
         self.converged = False
@@ -193,34 +187,18 @@ class _RunState:
         return self.seconds_before + (time.monotonic() - self.started)
 
     def append_progress(self, row: dict[str, Any]) -> None:
-        path = self.out / "progress.csv"
-        new = not path.exists()
-        with path.open("a", newline="") as stream:
-            writer = csv.DictWriter(stream, fieldnames=PROGRESS_FIELDS)
-            if new:
-                writer.writeheader()
-            writer.writerow(row)
+        self.progress.append(row)
 
     def trim_progress(self, steps: int) -> None:
         """Drop progress rows written after the checkpoint being resumed."""
-        path = self.out / "progress.csv"
-        if not path.exists():
-            return
-        with path.open(newline="") as stream:
-            rows = [r for r in csv.DictReader(stream) if int(r["steps"]) <= steps]
-        tmp = path.with_name(".progress.csv.tmp")
-        with tmp.open("w", newline="") as stream:
-            writer = csv.DictWriter(stream, fieldnames=PROGRESS_FIELDS)
-            writer.writeheader()
-            writer.writerows(rows)
-        os.replace(tmp, path)
+        self.progress.keep(lambda row: int(row["steps"]) <= steps)
 
     def save_checkpoint(self, model: BaseAlgorithm) -> None:
         self.checkpoints.mkdir(parents=True, exist_ok=True)
         tmp = self.checkpoints / ".model.tmp.zip"
         model.save(tmp)
         os.replace(tmp, self.checkpoints / "model.zip")
-        _write_json(
+        write_json(
             self.checkpoints / "state.json",
             {
                 "num_timesteps": int(model.num_timesteps),
@@ -320,7 +298,7 @@ def _final_outputs(run: _RunState, agent: SB3Agent, env_steps: int) -> dict[str,
             "seed": run.config.seed,
         }
     )
-    _write_json(run.out / "summary.json", summary)
+    write_json(run.out / "summary.json", summary)
     return summary
 
 
@@ -416,7 +394,7 @@ def train(
         raise RLConfigError(f"{str(path)!r} already holds a run (use resume)")
     model = _make_model(config, _env(config, stages, 0), path)  # bad hyperparameters fail here
     path.mkdir(parents=True, exist_ok=True)
-    _write_json(path / "config.json", config.to_dict())
+    write_json(path / "config.json", config.to_dict())
     return _run(_RunState(path, config), model, progress_bar)
 
 

@@ -275,7 +275,8 @@ def _add_agent_options(parser: argparse.ArgumentParser, controller: bool = True)
         parser.add_argument(
             "--controller",
             default="random",
-            help="random, oracle, or a saved agent: tabular .json, SB3 .zip (default random)",
+            help="random, oracle, or a saved agent: tabular .json, SB3 .zip, evolved .npz"
+            " (default random)",
         )
     parser.add_argument("--seed", type=int, default=0, help="seed of random controllers (0)")
     parser.add_argument(

@@ -1,0 +1,80 @@
+"""Run folders: the files every training command writes, written safely.
+
+A run folder (``ARCHITECTURE.md``, "Run folders") holds ``config.json``,
+``progress.csv``, ``checkpoints/``, the champion agent and ``summary.json``.
+Both trainers (``rl_baselines`` and ``evolution``) write them through these
+helpers so that a run killed at any moment leaves readable files behind:
+
+* :func:`write_json` and :func:`write_bytes` write a temporary file and rename
+  it over the old one (atomic on POSIX): a reader sees the old or the new file,
+  never half of one;
+* :class:`ProgressLog` appends one CSV row per evaluation or generation and,
+  on resume, drops the rows written after the checkpoint being resumed, so the
+  log of a resumed run reads as that of an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = ["ProgressLog", "write_bytes", "write_json"]
+
+
+def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder, then rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "wb") as stream:
+        stream.write(data)
+        stream.flush()
+        os.fsync(stream.fileno())
+    os.replace(tmp, path)
+    return path
+
+
+def write_json(path: str | os.PathLike, data: Any) -> Path:
+    """Write ``data`` as indented, key-sorted JSON, atomically."""
+    text = json.dumps(data, indent=2, sort_keys=True) + "\n"
+    return write_bytes(path, text.encode("utf-8"))
+
+
+class ProgressLog:
+    """``progress.csv``: one row per evaluation (or generation), with fixed columns."""
+
+    def __init__(self, path: str | os.PathLike, fields: Sequence[str]) -> None:
+        self.path = Path(path)
+        self.fields = tuple(fields)
+
+    def append(self, row: Mapping[str, Any]) -> None:
+        """Add one row (the header first, if the file is new)."""
+        new = not self.path.exists()
+        with self.path.open("a", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=self.fields)
+            if new:
+                writer.writeheader()
+            writer.writerow(row)
+
+    def rows(self) -> list[dict[str, str]]:
+        """Every row, as strings (empty if the file does not exist)."""
+        if not self.path.exists():
+            return []
+        with self.path.open(newline="") as stream:
+            return list(csv.DictReader(stream))
+
+    def keep(self, predicate: Callable[[dict[str, str]], bool]) -> None:
+        """Rewrite the log (atomically) with only the rows ``predicate`` accepts."""
+        if not self.path.exists():
+            return
+        rows = [row for row in self.rows() if predicate(row)]
+        tmp = self.path.with_name(f".{self.path.name}.tmp")
+        with tmp.open("w", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=self.fields)
+            writer.writeheader()
+            writer.writerows(rows)
+        os.replace(tmp, self.path)

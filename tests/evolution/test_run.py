@@ -1,0 +1,178 @@
+"""Evolution runs: run folder, budgets, config errors, the CLI, and resume after a real kill."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evolution import EvolutionConfigError
+from evolution.agent_file import load_agent, read_agent
+from evolution.cli import main
+from evolution.run import EvolveConfig, evolve, resume
+
+SMALL_MAZES = ["M0_5x5_U", "M1_5x5_C1"]
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _config(algo: str, **overrides: object) -> dict:
+    algorithm = {"population_size": 16}
+    config = {
+        "algo": algo,
+        "mazes": SMALL_MAZES,
+        "budget_steps": None,
+        "max_generations": 4,
+        "algorithm": algorithm,
+    }
+    config.update(overrides)
+    return config
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    lines = (out / "progress.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    return [dict(zip(header, line.split(","), strict=True)) for line in lines[1:]]
+
+
+def _without_time(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    return [{k: v for k, v in r.items() if k not in ("seconds", "eval_seconds")} for r in rows]
+
+
+@pytest.mark.parametrize("algo", ["cmaes", "neat"])
+def test_run_folder(tmp_path: Path, algo: str) -> None:
+    out = tmp_path / "run"
+    result = evolve(_config(algo), out)
+    for name in ("config.json", "progress.csv", "champion.npz", "summary.json", "fitness.png"):
+        assert (out / name).stat().st_size > 0, name
+    assert (out / "checkpoints" / "state.pkl").exists()
+    assert len(list((out / "trajectories").glob("*.png"))) == 4
+    rows = _rows(out)
+    assert [int(r["generation"]) for r in rows] == [1, 2, 3, 4]
+    steps = [int(r["steps"]) for r in rows]
+    assert steps == sorted(steps) and steps[-1] == result.env_steps
+    champions = [float(r["champion"]) for r in rows]
+    assert champions == sorted(champions)  # the best so far never decreases
+    assert champions[-1] == pytest.approx(result.fitness)
+    assert max(float(r["best"]) for r in rows) == pytest.approx(result.fitness)
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("success_rate", "normalized_reward", "input_recognition", "env_steps", "seconds"):
+        assert key in summary
+    assert summary["env_steps"] == result.env_steps and summary["generations"] == 4
+    # the champion file is a self-contained agent whose training fitness is recorded
+    _, metadata = read_agent(out / "champion.npz")
+    assert metadata["fitness"] == pytest.approx(result.fitness)
+    assert metadata["mazes"] == SMALL_MAZES and metadata["algorithm"] == algo
+    assert load_agent(out / "champion.npz").robot.to_string() == "DD"
+
+
+def test_step_budget_stops_after_the_generation_that_reaches_it(tmp_path: Path) -> None:
+    result = evolve(_config("neat", budget_steps=20_000, max_generations=None), tmp_path / "r")
+    rows = _rows(tmp_path / "r")
+    assert result.env_steps >= 20_000
+    assert int(rows[-2]["steps"]) < 20_000  # one generation fewer would not have reached it
+
+
+def test_seconds_budget(tmp_path: Path) -> None:
+    config = _config("neat", budget_seconds=0.5, max_generations=None)
+    result = evolve(config, tmp_path / "r")
+    assert result.seconds >= 0.5 and result.generations >= 1
+
+
+def test_same_seed_same_run_and_refusal_to_overwrite(tmp_path: Path) -> None:
+    first = evolve(_config("cmaes"), tmp_path / "a")
+    second = evolve(_config("cmaes"), tmp_path / "b")
+    assert _without_time(_rows(tmp_path / "a")) == _without_time(_rows(tmp_path / "b"))
+    assert first.fitness == second.fitness
+    with pytest.raises(EvolutionConfigError, match="already holds a run"):
+        evolve(_config("cmaes"), tmp_path / "a")
+
+
+@pytest.mark.parametrize(
+    ("overrides", "bad"),
+    [
+        ({"algo": "pso"}, "pso"),
+        ({"robot": "XX"}, "XX"),
+        ({"mazes": ["M0_5x5_Q"]}, "Q"),
+        ({"fitness": "speed"}, "speed"),
+        ({"budget_steps": -5}, "-5"),
+        ({"budget_seconds": 0}, "budget_seconds"),
+        ({"seed": "one"}, "one"),
+        ({"algorithm": {"population_size": 16, "sigma": 2}}, "sigma"),
+        ({"colour": "red"}, "colour"),
+    ],
+)
+def test_bad_config_names_the_value(tmp_path: Path, overrides: dict, bad: str) -> None:
+    with pytest.raises(EvolutionConfigError, match=bad):
+        evolve({**_config("cmaes"), **overrides}, tmp_path / "run")
+    assert not (tmp_path / "run" / "config.json").exists()
+
+
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--algo", "cmaes", "--mazes", "M0_5x5_Q", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "Q" in err[0]
+    assert main(["--resume", str(tmp_path / "nothing")]) == 2
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--algo", "ga"])
+    assert exit_info.value.code == 2
+
+
+def test_cli_with_a_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    config = tmp_path / "neat.json"
+    config.write_text(json.dumps({"population_size": 12}))  # the algorithm's options alone
+    argv = ["--algo", "neat", "--mazes", ",".join(SMALL_MAZES), "--max-generations", "2"]
+    assert main([*argv, "--config", str(config), "--out", str(tmp_path / "r")]) == 0
+    assert "run folder" in capsys.readouterr().out
+    saved = EvolveConfig.from_dict(json.loads((tmp_path / "r" / "config.json").read_text()))
+    assert saved.algorithm == {"population_size": 12} and saved.max_generations == 2
+
+
+def _kill_when(process: subprocess.Popen, out: Path, generations: int) -> None:
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        checkpoint = out / "checkpoints" / "state.pkl"
+        if checkpoint.exists() and (out / "progress.csv").exists():
+            if len(_rows(out)) >= generations:
+                break
+        if process.poll() is not None:
+            pytest.fail("the run ended before it could be killed")
+        time.sleep(0.02)
+    assert process.poll() is None, "the run ended before it could be killed"
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+
+
+@pytest.mark.parametrize("algo", ["cmaes", "neat"])
+def test_resume_after_a_kill_reaches_the_same_champion(tmp_path: Path, algo: str) -> None:
+    config = _config(algo, max_generations=120, mazes=["M3_10x10_C1", "M4_8x8_C1"])
+    config["algorithm"] = {"population_size": 24}
+    whole = evolve(config, tmp_path / "whole")
+
+    (tmp_path / "config.json").write_text(json.dumps(config))
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "evolution.cli", "--config", str(tmp_path / "config.json")]
+    process = subprocess.Popen(
+        [*command, "--out", str(out), "--no-progress"],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    _kill_when(process, out, generations=3)
+    assert not (out / "summary.json").exists()
+    resumed = resume(out)
+
+    assert _without_time(_rows(out)) == _without_time(_rows(tmp_path / "whole"))
+    assert resumed.fitness == whole.fitness and resumed.env_steps == whole.env_steps
+    a, _ = read_agent(out / "champion.npz")
+    b, _ = read_agent(tmp_path / "whole" / "champion.npz")
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["success_rate"] == whole.summary["success_rate"]
+    assert summary["normalized_reward"] == whole.summary["normalized_reward"]

@@ -359,7 +359,9 @@ def build_parser() -> argparse.ArgumentParser:
     suite.add_argument("--json", action="store_true", help="print the suite as JSON")
     suite.add_argument("--render", metavar="PNG", help="draw the 18 mazes (columns x rows)")
     suite.add_argument(
-        "--evaluate", metavar="CONTROLLER", help="evaluate random, oracle or a tabular .json"
+        "--evaluate",
+        metavar="CONTROLLER",
+        help="evaluate random, oracle or a saved agent (.json, .zip, .npz)",
     )
     _add_agent_options(suite, controller=False)
     suite.add_argument("--csv", metavar="FILE", help="with --evaluate: one row per episode")

@@ -260,14 +260,28 @@ class _Run:
     def save_checkpoint(self) -> None:
         write_bytes(self.checkpoint, pickle.dumps(self.state, protocol=pickle.HIGHEST_PROTOCOL))
 
+    def _done(self) -> float:
+        """How much of the budget the progress bar counts is spent (steps, else seconds)."""
+        if self.config.budget_steps is not None:
+            return min(self.state.steps, self.config.budget_steps)
+        if self.config.budget_seconds is not None:
+            return min(self.state.seconds, self.config.budget_seconds)
+        return self.state.generation
+
     def loop(self, progress_bar: bool) -> None:
+        """Generations until a budget is spent, with a progress bar (ETA from the budget)."""
         from tqdm import tqdm
 
         c = self.config
-        total, unit = (c.budget_steps, "steps") if c.budget_steps else (None, "steps")
+        if c.budget_steps is not None:
+            total, unit = c.budget_steps, "steps"
+        elif c.budget_seconds is not None:
+            total, unit = c.budget_seconds, "s"
+        else:
+            total, unit = c.max_generations, "gen"
         with tqdm(
             total=total,
-            initial=min(self.state.steps, total or self.state.steps),
+            initial=self._done(),
             unit=unit,
             unit_scale=True,
             disable=not progress_bar,
@@ -288,7 +302,7 @@ class _Run:
                     steps_s=f"{rate / 1e6:.2f}M",
                     refresh=False,
                 )
-                bar.update(min(self.state.steps, total or self.state.steps) - bar.n)
+                bar.update(self._done() - bar.n)
 
     def finish(self) -> EvolveResult:
         """Evaluate the champion on the standard suite; write summary, plot and trajectories."""

@@ -747,15 +747,17 @@ class StepResult:
         return self.terminated | self.truncated
 
 
-def _threads_pay_off(work: int) -> bool:
-    """Whether the parallel kernels are the better default for ``work`` per step.
+def threads_pay_off(work: int, min_work: int = _PARALLEL_MIN_WORK) -> bool:
+    """Whether multi-threaded numba kernels are the better default for ``work`` per call.
 
-    They need enough work to amortise a thread start-up and barrier per step,
-    and idle cores: while other processes keep the cores busy (by the 1-minute
-    load average, which counts this process too), a worker thread waits for a
-    time slice at every barrier.
+    They need enough work (at least ``min_work``, in the caller's unit) to
+    amortise a thread start-up and barrier per call, and idle cores: while
+    other processes keep the cores busy (by the 1-minute load average, which
+    counts this process too), a worker thread waits for a time slice at every
+    barrier. The engine and the evolution package's batched policies decide
+    with this one rule.
     """
-    if numba.get_num_threads() < 2 or work < _PARALLEL_MIN_WORK:
+    if numba.get_num_threads() < 2 or work < min_work:
         return False
     try:
         load = os.getloadavg()[0]
@@ -845,7 +847,7 @@ class BatchEngine:
         self._ep_success = np.zeros(n, dtype=np.bool_)
         self._final = np.zeros(self._obs_shape, dtype=self._obs_dtype)
         if parallel is None:
-            parallel = _threads_pay_off(n * _WORK_PER_AGENT[self.kind])
+            parallel = threads_pay_off(n * _WORK_PER_AGENT[self.kind])
         self.parallel = bool(parallel)
         if self.kind == "discrete":
             kernel = _step_discrete_parallel if self.parallel else _step_discrete

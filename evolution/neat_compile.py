@@ -29,7 +29,6 @@ chosen by default only for large batches with idle cores.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
 from heapq import heapify, heappop, heappush
 from typing import Any
@@ -38,6 +37,7 @@ import numba
 import numpy as np
 from numba import prange
 
+from amaze.engine import threads_pay_off
 from amaze.robot import Robot, as_robot
 from evolution import EvolutionConfigError
 
@@ -358,22 +358,6 @@ def _forward_parallel(x, per_genome, node_start, bias, act, indptr, mid, src, w,
         )
 
 
-def _threads_pay_off(work: int) -> bool:
-    """Whether the multi-threaded kernel is the better default for ``work`` per call.
-
-    Threads need enough work to amortise their start-up and barrier, and idle
-    cores: on a busy machine a worker waits for a time slice at each barrier.
-    """
-    if numba.get_num_threads() < 2 or work < _PARALLEL_MIN_WORK:
-        return False
-    try:
-        load = os.getloadavg()[0]
-    except (AttributeError, OSError):
-        return True
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return load < (cores or 1) - 0.5
-
-
 # -----------------------------------------------------------------------------
 # The population policy
 
@@ -482,7 +466,7 @@ class GenomePopulation:
         out = np.empty((n, self.n_outputs), dtype=np.float64)
         parallel = self.parallel
         if parallel is None:
-            parallel = _threads_pay_off(int(n * max(self._mean_edges, 1.0)))
+            parallel = threads_pay_off(int(n * max(self._mean_edges, 1.0)), _PARALLEL_MIN_WORK)
         kernel = _forward_parallel if parallel else _forward_serial
         kernel(
             x,

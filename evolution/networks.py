@@ -53,7 +53,6 @@ size, alone (:mod:`evolution.agent_file`), or on one thread or several.
 from __future__ import annotations
 
 import itertools
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -61,6 +60,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from amaze.engine import threads_pay_off
 from amaze.robot import Robot, RobotStringError, as_robot
 from evolution import EvolutionConfigError
 
@@ -608,23 +608,6 @@ def _pool(images, rows, edges, scale, out):
                 out[k, f] = np.float32(total) * scale[f]
 
 
-def _threads_pay_off(work: int) -> bool:
-    """Whether the multi-threaded kernel is the better default for ``work`` multiply-adds.
-
-    As for the batch engine: only with enough work per call and idle cores
-    (by the 1-minute load average), since a thread that waits for a busy core
-    at the barrier makes a call many times slower.
-    """
-    if numba.get_num_threads() < 2 or work < _PARALLEL_MIN_WORK:
-        return False
-    try:
-        load = os.getloadavg()[0]
-    except (AttributeError, OSError):
-        return True
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return load < (cores or 1) - 0.5
-
-
 # -----------------------------------------------------------------------------
 # Population policy
 
@@ -793,7 +776,7 @@ class NetworkPopulation:
             self._rows = np.ascontiguousarray(self._rows, dtype=np.int64)
             self._blocks = np.ascontiguousarray(self._blocks)
             if self.parallel is None:
-                threads = _threads_pay_off(len(self._rows) * self._macs)
+                threads = threads_pay_off(len(self._rows) * self._macs, _PARALLEL_MIN_WORK)
                 self._kernel = _forward_parallel if threads else _forward_serial
             self._dirty = False
         return self._by_episode, self._rows, self._blocks

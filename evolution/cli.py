@@ -19,28 +19,21 @@ fitness, steps/s, ETA) shows on a terminal. Bad input prints one line
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
-from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
+from amaze.cli.common import CommandParser, read_json_object
 from amaze.errors import AmazeError
 from evolution import EvolutionConfigError
 
 __all__ = ["entry_point", "main"]
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse with the project's one-line error and status 2."""
-
-    def error(self, message: str) -> NoReturn:
-        print(f"error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="amaze-evolve", description="Evolve agents (CMA-ES, NEAT-like) in mazes.")
+    p = CommandParser(
+        prog="amaze-evolve", description="Evolve agents (CMA-ES, NEAT-like) in mazes."
+    )
     p.add_argument("--algo", choices=("cmaes", "neat"))
     p.add_argument("--mazes", help="training mazes, comma-separated (each in its 4 rotations)")
     p.add_argument("--robot", help="DD (default), a hybrid (H15) or a continuous (CC15) robot")
@@ -68,15 +61,7 @@ def _config(args: argparse.Namespace) -> dict[str, Any]:
 
     data: dict[str, Any] = {}
     if args.config:
-        try:
-            loaded = json.loads(Path(args.config).read_text())
-        except FileNotFoundError:
-            raise EvolutionConfigError(f"config file {args.config!r} does not exist") from None
-        except json.JSONDecodeError as error:
-            message = f"config file {args.config!r} is not JSON: {error}"
-            raise EvolutionConfigError(message) from None
-        if not isinstance(loaded, dict):
-            raise EvolutionConfigError(f"config file {args.config!r} does not hold a JSON object")
+        loaded = read_json_object(args.config, EvolutionConfigError)
         whole = set(loaded) <= set(EvolveConfig.__dataclass_fields__)
         data = loaded if whole else {"algorithm": loaded}
     for name in ("algo", "robot", "fitness", "budget_steps", "seed", "max_generations"):

@@ -18,27 +18,18 @@ core; see :mod:`amaze.replicates`), each writing its output to its folder's
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
-from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
+from amaze.cli.common import CommandParser, read_json_object
 from rl_baselines import RLConfigError
 
 __all__ = ["entry_point", "main"]
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse with the project's one-line error and status 2."""
-
-    def error(self, message: str) -> NoReturn:
-        print(f"error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="amaze-train", description="Train SB3 A2C/PPO agents on AMaze mazes.")
+    p = CommandParser(prog="amaze-train", description="Train SB3 A2C/PPO agents on AMaze mazes.")
     p.add_argument("--algo", choices=("a2c", "ppo"))
     p.add_argument("--regime", choices=("direct", "interpolation"))
     p.add_argument("--robot")
@@ -62,15 +53,7 @@ def _parser() -> argparse.ArgumentParser:
 def _config(args: argparse.Namespace) -> dict[str, Any]:
     data: dict[str, Any] = {}
     if args.config:
-        path = Path(args.config)
-        try:
-            loaded = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise RLConfigError(f"config file {args.config!r} does not exist") from None
-        except json.JSONDecodeError as error:
-            raise RLConfigError(f"config file {args.config!r} is not JSON: {error}") from None
-        if not isinstance(loaded, dict):
-            raise RLConfigError(f"config file {args.config!r} does not hold a JSON object")
+        loaded = read_json_object(args.config, RLConfigError)
         data = loaded if "hyperparameters" in loaded else {"hyperparameters": loaded}
     for name in ("algo", "regime", "robot", "budget_steps", "seed", "eval_every", "n_envs"):
         value = getattr(args, name)

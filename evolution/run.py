@@ -15,7 +15,8 @@ the mean over the training mazes, each in its 4 rotations, of the paper's R̄
 
 **Budgets** are counted as for the RL baselines: environment steps (the
 steps of the scored episodes, :attr:`PopulationResult.env_steps`) and
-wall-clock seconds. A run stops after the first generation that reaches
+wall-clock seconds (everything the loop does: evaluation, breeding, logging
+and checkpoints). A run stops after the first generation that reaches
 either budget (so it may overshoot by less than one generation), after
 ``max_generations``, or when the algorithm has stopped (CMA-ES with no
 restart left).
@@ -26,10 +27,15 @@ restart left).
 * ``progress.csv``: one row per generation: ``generation, steps, seconds,
   best, mean, champion, eval_seconds`` (best and mean fitness of the
   generation, the best fitness so far, the seconds spent playing episodes);
-* ``checkpoints/state.pkl``: the whole run state after the last generation
-  (the algorithm with its random generators, steps and seconds spent),
-  written atomically every ``checkpoint_every`` generations. It is a pickle:
-  load only checkpoints you wrote yourself;
+* ``checkpoints/state.pkl``: the whole run state after a generation (the
+  algorithm with its random generators, steps and seconds spent), written
+  atomically after the first generation, then after the first generation that
+  ends ``checkpoint_seconds`` (default 10) after the previous checkpoint, and
+  after the last one (``checkpoint_seconds: 0``: after every generation). A
+  checkpoint of a CMA-ES run with a large population weighs megabytes, and
+  fast generations take milliseconds: writing one every generation would
+  cost more than the evolution. It is a pickle: load only checkpoints you
+  wrote yourself;
 * ``champion.npz``: the best individual so far, an agent file of
   :mod:`evolution.agent_file` (no pickle; ``amaze run --controller champion.npz``);
 * ``summary.json``: the champion on the standard evaluation suite
@@ -94,7 +100,7 @@ class EvolveConfig:
     budget_seconds: float | None = None
     max_generations: int | None = None
     seed: int = 0
-    checkpoint_every: int = 1
+    checkpoint_seconds: float = 10.0
     algorithm: dict[str, Any] = field(default_factory=dict)
 
     def validate(self) -> EvolveConfig:
@@ -130,9 +136,9 @@ class EvolveConfig:
             raise EvolutionConfigError("a run needs a budget: budget_steps or budget_seconds")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise EvolutionConfigError(f"seed {self.seed!r} is not a non-negative integer")
-        every = self.checkpoint_every
-        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-            raise EvolutionConfigError(f"checkpoint_every {every!r} is not a positive integer")
+        every = self.checkpoint_seconds
+        if isinstance(every, bool) or not isinstance(every, int | float) or not every >= 0:
+            raise EvolutionConfigError(f"checkpoint_seconds {every!r} is not a number >= 0")
         if not isinstance(self.algorithm, dict):
             raise EvolutionConfigError(f"algorithm {self.algorithm!r} is not a JSON object")
         return self
@@ -288,11 +294,18 @@ class _Run:
             desc=f"{c.algo} seed {c.seed}",
             dynamic_ncols=True,
         ) as bar:
+            last_checkpoint: float | None = None
             while self.budget_left():
                 row = self.generation()
+                logging_started = time.perf_counter()
                 self.progress.append(row)
-                if self.state.generation % c.checkpoint_every == 0 or not self.budget_left():
+                due = last_checkpoint is None or (
+                    self.state.seconds - last_checkpoint >= c.checkpoint_seconds
+                )
+                if due or not self.budget_left():
                     self.save_checkpoint()
+                    last_checkpoint = self.state.seconds
+                self.state.seconds += time.perf_counter() - logging_started
                 rate = self.state.steps / max(self.state.eval_seconds, 1e-9)
                 bar.set_postfix(
                     gen=row["generation"],

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -51,7 +52,8 @@ def test_run_folder(tmp_path: Path, algo: str) -> None:
     result = evolve(_config(algo), out)
     for name in ("config.json", "progress.csv", "champion.npz", "summary.json", "fitness.png"):
         assert (out / name).stat().st_size > 0, name
-    assert (out / "checkpoints" / "state.pkl").exists()
+    state = pickle.loads((out / "checkpoints" / "state.pkl").read_bytes())
+    assert state.generation == 4 and state.steps == result.env_steps  # the last one is saved
     assert len(list((out / "trajectories").glob("*.png"))) == 4
     rows = _rows(out)
     assert [int(r["generation"]) for r in rows] == [1, 2, 3, 4]

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-__all__ = ["Replicate", "plan_replicates", "run_replicates", "strip_options"]
+__all__ = ["Replicate", "plan_replicates", "replicate_command", "run_replicates", "strip_options"]
 
 
 @dataclass(frozen=True)
@@ -116,3 +116,24 @@ def run_replicates(plan: Sequence[Replicate], workers: int | None = None) -> int
             process.wait()
             log.close()
     return status
+
+
+def replicate_command(
+    module: str,
+    argv: Sequence[str],
+    first_seed: int | None,
+    count: int,
+    out: str | None,
+    workers: int | None = None,
+) -> int:
+    """What ``--replicates K`` does for the command ``python -m module``.
+
+    Seeds ``first_seed`` (default 0) onwards, each in ``out/seed-<s>``, as
+    parallel workers without progress bars (their output goes to log files).
+    Bad values raise ``ValueError``.
+    """
+    if not out:
+        raise ValueError("--out is required")
+    seed = 0 if first_seed is None else first_seed
+    plan = plan_replicates(module, [*argv, "--no-progress"], seed, count, out)
+    return run_replicates(plan, workers)

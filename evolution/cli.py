@@ -80,17 +80,13 @@ def _config(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _replicates(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    from amaze.replicates import plan_replicates, run_replicates
+    """Run seeds S..S+K-1 as parallel worker processes, each in ``OUT/seed-<s>``."""
+    from amaze.replicates import replicate_command
 
-    if not args.out:
-        raise EvolutionConfigError("--out is required")
-    first = args.seed if args.seed is not None else 0
     try:
-        plan = plan_replicates("evolution.cli", [*argv, "--no-progress"], first,
-                               args.replicates, args.out)  # fmt: skip
-        return run_replicates(plan, args.workers)
-    except EvolutionConfigError:
-        raise
+        return replicate_command(
+            "evolution.cli", argv, args.seed, args.replicates, args.out, args.workers
+        )
     except ValueError as error:
         raise EvolutionConfigError(str(error)) from None
 

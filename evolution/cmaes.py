@@ -32,13 +32,14 @@ import contextlib
 import math
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any
 
 import cma
 import numpy as np
 
 from amaze.robot import Robot, as_robot
+from amaze.runs import config_from_dict
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkPopulation, NetworkSpec
 
@@ -203,15 +204,7 @@ class CMAESConfig:
 
         Unknown keys and bad values raise :class:`EvolutionConfigError` naming them.
         """
-        if not isinstance(data, Mapping):
-            raise EvolutionConfigError(
-                f"CMA-ES config must be a mapping, got {type(data).__name__}"
-            )
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise EvolutionConfigError(f"unknown CMA-ES config key(s): {', '.join(unknown)}")
-        return cls(**dict(data))
+        return config_from_dict(cls, data, EvolutionConfigError, "CMA-ES config")
 
 
 def _check_network(network: Any) -> dict[str, Any]:

@@ -54,6 +54,7 @@ import numpy as np
 from deap import base, tools
 
 from amaze.robot import Robot, as_robot
+from amaze.runs import config_from_dict
 from evolution import EvolutionConfigError
 from evolution.neat_compile import (
     ACTIVATIONS,
@@ -240,13 +241,7 @@ class NeatConfig:
 
         Unknown keys and bad values raise :class:`EvolutionConfigError` naming them.
         """
-        if not isinstance(data, dict):
-            raise EvolutionConfigError(f"NEAT config must be a mapping, got {type(data).__name__}")
-        known = {field.name for field in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise EvolutionConfigError(f"unknown NEAT config key '{unknown[0]}'")
-        return cls(**data)
+        return config_from_dict(cls, data, EvolutionConfigError, "NEAT config")
 
 
 # -----------------------------------------------------------------------------

@@ -59,7 +59,7 @@ import json
 import os
 import pickle
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +68,7 @@ import numpy as np
 from amaze.evaluation import Evaluator
 from amaze.policy import record_episode
 from amaze.robot import as_robot
-from amaze.runs import ProgressLog, write_bytes, write_json
+from amaze.runs import ProgressLog, config_from_dict, write_bytes, write_json
 from amaze.suite import PAPER_TRAINING_MAZE, rotations
 from amaze.trajectories import save_trajectory_png
 from evolution import EvolutionConfigError
@@ -146,13 +146,7 @@ class EvolveConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> EvolveConfig:
         """A config from a JSON object; unknown keys are errors."""
-        if not isinstance(data, dict):
-            raise EvolutionConfigError(f"a config must be a JSON object, not {data!r}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise EvolutionConfigError(f"unknown config key {unknown[0]!r}")
-        return cls(**data).validate()
+        return config_from_dict(cls, data, EvolutionConfigError).validate()
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

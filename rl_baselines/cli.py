@@ -64,15 +64,12 @@ def _config(args: argparse.Namespace) -> dict[str, Any]:
 
 def _replicates(args: argparse.Namespace, argv: Sequence[str]) -> int:
     """Run seeds S..S+K-1 as parallel worker processes, each in ``OUT/seed-<s>``."""
-    from amaze.replicates import plan_replicates, run_replicates
+    from amaze.replicates import replicate_command
 
-    if not args.out:
-        raise RLConfigError("--out is required")
-    first = args.seed if args.seed is not None else 0
     try:
-        plan = plan_replicates("rl_baselines.cli", [*argv, "--no-progress"], first,
-                               args.replicates, args.out)  # fmt: skip
-        return run_replicates(plan, args.workers)
+        return replicate_command(
+            "rl_baselines.cli", argv, args.seed, args.replicates, args.out, args.workers
+        )
     except ValueError as error:
         raise RLConfigError(str(error)) from None
 

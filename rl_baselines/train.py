@@ -49,7 +49,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +60,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from amaze.evaluation import Evaluator
 from amaze.policy import record_episode
 from amaze.robot import as_robot
-from amaze.runs import ProgressLog, write_json
+from amaze.runs import ProgressLog, config_from_dict, write_json
 from amaze.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, rotations
 from amaze.trajectories import save_trajectory_png
 from rl_baselines import RLConfigError
@@ -122,11 +122,7 @@ class TrainConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
         """A config from a JSON object; unknown keys are errors."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise RLConfigError(f"unknown config key {unknown[0]!r}")
-        return cls(**data).validate()
+        return config_from_dict(cls, data, RLConfigError).validate()
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

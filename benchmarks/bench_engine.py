@@ -21,7 +21,7 @@ import time
 import numba
 import numpy as np
 
-from amaze.engine import BatchEngine
+from amaze.agents.engine import BatchEngine
 
 MAZE = "M{seed}_20x20_C1_l.25_L.25_t.5_T.5"
 

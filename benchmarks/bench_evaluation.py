@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from amaze.evaluation import Evaluator
+from amaze.evaluation.protocol import Evaluator
 
 
 class MLPPolicy:

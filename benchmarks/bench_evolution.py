@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from amaze.suite import PAPER_TRAINING_MAZE, standard_suite
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE, standard_suite
 from evolution.networks import NetworkSpec
 from evolution.population import PopulationEvaluator, with_rotations
 

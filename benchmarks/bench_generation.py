@@ -43,8 +43,8 @@ print(json.dumps(statistics.median(rates)))
 
 
 def ours(size: int, count: int, repeats: int) -> float:
-    from amaze.maze import Maze
-    from amaze.spec import MazeSpec
+    from amaze.maze.maze import Maze
+    from amaze.maze.spec import MazeSpec
 
     specs = [MazeSpec.from_string(TEMPLATE.format(seed=s, size=size)) for s in range(count)]
     Maze.generate(specs[0])  # compile (or load the compiled cache) outside the timing

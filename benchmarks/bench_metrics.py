@@ -1,6 +1,6 @@
 """Maze metrics throughput (mazes per second, median of repeats).
 
-Computes every complexity metric (:func:`amaze.metrics.compute_metrics`) of complex
+Computes every complexity metric (:func:`amaze.maze.metrics.compute_metrics`) of complex
 mazes ``M<seed>_<n>x<n>_C1_l.25_L.25_t.5_T.5`` for consecutive seeds, at 10x10 and
 20x20. The mazes are generated before the timing; the per-cell sign table that a
 maze builds on first use (``Maze.cell_signs``) is cleared before every repeat, so
@@ -54,14 +54,14 @@ print(json.dumps({"rate": statistics.median(rates), "metrics": check}))
 
 
 def _mazes(size: int, count: int) -> list[Any]:
-    from amaze.maze import Maze
+    from amaze.maze.maze import Maze
 
     return [Maze.from_string(TEMPLATE.format(seed=s, size=size)) for s in range(count)]
 
 
 def ours(size: int, count: int, repeats: int) -> tuple[float, list[dict[str, Any]]]:
     """Median mazes/s of :func:`compute_metrics`, and the metrics (reference layout)."""
-    from amaze.metrics import compute_metrics
+    from amaze.maze.metrics import compute_metrics
 
     mazes = _mazes(size, count)
     compute_metrics(mazes[0])  # first-call costs (caches) outside the timing

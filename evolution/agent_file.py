@@ -14,7 +14,7 @@ An agent file ``<name>.npz`` is a plain numpy archive, read with
 
 Files are written atomically (a temporary file, then a rename), so that a
 killed run never leaves half an agent. :func:`load_agent` returns a policy of
-the :mod:`amaze.policy` protocol for one individual, any number of agents at
+the :mod:`amaze.evaluation.policy` protocol for one individual, any number of agents at
 once; it is registered as the ``npz`` loader of ``amaze.agent_loaders``, so
 ``amaze run --controller champion.npz`` (and ``amaze inputs``, ``amaze suite
 --evaluate``) play saved agents.
@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
+from amaze.agents.robot import RobotStringError, as_robot
 from amaze.errors import AmazeError
-from amaze.robot import RobotStringError, as_robot
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkSpec
 

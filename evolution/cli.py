@@ -11,7 +11,7 @@ Mazes (default: the paper's direct-training maze) are played in their 4
 rotations. ``--config FILE.json`` holds a whole config (the keys of
 :class:`~evolution.run.EvolveConfig`) or only the algorithm's options;
 command-line options win over it. Replicates run as parallel worker processes
-(:mod:`amaze.replicates`). The progress bar (generation, best and mean
+(:mod:`amaze.runs.replicates`). The progress bar (generation, best and mean
 fitness, steps/s, ETA) shows on a terminal. Bad input prints one line
 ``error: ...`` and exits with status 2.
 """
@@ -23,8 +23,8 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from amaze.cli.common import CommandParser, read_json_object
 from amaze.errors import AmazeError
+from amaze.runs.command import CommandParser, read_json_object
 from evolution import EvolutionConfigError
 
 __all__ = ["entry_point", "main"]
@@ -81,7 +81,7 @@ def _config(args: argparse.Namespace) -> dict[str, Any]:
 
 def _replicates(args: argparse.Namespace, argv: Sequence[str]) -> int:
     """Run seeds S..S+K-1 as parallel worker processes, each in ``OUT/seed-<s>``."""
-    from amaze.replicates import replicate_command
+    from amaze.runs.replicates import replicate_command
 
     try:
         return replicate_command(

@@ -38,8 +38,8 @@ from typing import Any
 import cma
 import numpy as np
 
-from amaze.robot import Robot, as_robot
-from amaze.runs import config_from_dict
+from amaze.agents.robot import Robot, as_robot
+from amaze.runs.folder import config_from_dict
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkPopulation, NetworkSpec
 

@@ -53,8 +53,8 @@ from typing import Any
 import numpy as np
 from deap import base, tools
 
-from amaze.robot import Robot, as_robot
-from amaze.runs import config_from_dict
+from amaze.agents.robot import Robot, as_robot
+from amaze.runs.folder import config_from_dict
 from evolution import EvolutionConfigError
 from evolution.neat_compile import (
     ACTIVATIONS,

@@ -37,8 +37,8 @@ import numba
 import numpy as np
 from numba import prange
 
-from amaze.engine import threads_pay_off
-from amaze.robot import Robot, as_robot
+from amaze.agents.engine import threads_pay_off
+from amaze.agents.robot import Robot, as_robot
 from evolution import EvolutionConfigError
 
 __all__ = [
@@ -367,7 +367,7 @@ class GenomePopulation:
 
     A batch of ``n`` observations (``n`` a multiple of P) is split in P
     consecutive blocks of ``M = n // P`` agents: agent ``k`` uses genome
-    ``k // M``. ``reset(n_agents)`` (called by :func:`amaze.policy.run_episodes`)
+    ``k // M``. ``reset(n_agents)`` (called by :func:`amaze.evaluation.policy.run_episodes`)
     checks the batch size. ``parallel`` picks the multi-threaded kernel (both
     give identical results); ``None`` decides from the batch size and the
     machine's load. Build it with :meth:`from_genomes` or

@@ -43,7 +43,7 @@ CC15/CC11  25       52         450          1 954
 agents side by side (the SIMD axis): agents of one individual, or, when a
 population has more individuals than episodes each (a few mazes), the same
 episode of 64 individuals. It skips the agents whose scored episode has
-ended (the ``retire`` hook of :func:`amaze.policy.run_episodes`). Arithmetic
+ended (the ``retire`` hook of :func:`amaze.evaluation.policy.run_episodes`). Arithmetic
 is float32, in the same order in both kinds of blocks; tanh is a rational
 approximation (Eigen's, within 4e-7 of the exact value). So an individual
 acts the same, bit for bit, whether it is evaluated in a population of any
@@ -60,8 +60,8 @@ from typing import Any
 import numba
 import numpy as np
 
-from amaze.engine import threads_pay_off
-from amaze.robot import Robot, RobotStringError, as_robot
+from amaze.agents.engine import threads_pay_off
+from amaze.agents.robot import Robot, RobotStringError, as_robot
 from evolution import EvolutionConfigError
 
 __all__ = [
@@ -153,7 +153,7 @@ class NetworkSpec:
 
     @property
     def robot_info(self) -> Robot:
-        """The :class:`~amaze.robot.Robot` of :attr:`robot`."""
+        """The :class:`~amaze.agents.robot.Robot` of :attr:`robot`."""
         return as_robot(self.robot)
 
     @property
@@ -622,7 +622,7 @@ class NetworkPopulation:
     of one plays any number of agents (:mod:`evolution.agent_file`).
 
     ``reset(n_agents)`` starts a run; ``retire(agents)`` (called by
-    :func:`amaze.policy.run_episodes`) lets the forward pass skip agents whose
+    :func:`amaze.evaluation.policy.run_episodes`) lets the forward pass skip agents whose
     scored episode has ended (those it skips get action 0, or no acceleration)
     until the next ``reset``, or until all agents are retired (the run is over).
     ``parallel`` picks the multi-threaded kernel (default: when the work is

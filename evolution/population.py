@@ -1,15 +1,15 @@
 """Population policies and their fitness: P individuals x M episodes on one batch engine.
 
-A **population policy** is a policy of the :mod:`amaze.policy` protocol that
+A **population policy** is a policy of the :mod:`amaze.evaluation.policy` protocol that
 holds ``n_policies`` (P) individuals. It is played on one
-:class:`~amaze.engine.BatchEngine` of ``P * M`` agents: agent ``k`` belongs to
+:class:`~amaze.agents.engine.BatchEngine` of ``P * M`` agents: agent ``k`` belongs to
 individual ``k // M`` and plays episode ``k % M`` of the maze set (M episodes
 per individual, e.g. some mazes in their 4 rotations). Its ``reset(n_agents)``
 hook tells it ``M = n_agents // P``. Any plain policy is a population of one.
 
 :class:`PopulationEvaluator` prepares a maze set once (generation and
 compilation), plays a whole population on it with
-:func:`amaze.policy.run_episodes` and returns a :class:`PopulationResult`:
+:func:`amaze.evaluation.policy.run_episodes` and returns a :class:`PopulationResult`:
 per individual its fitness (the mean over its M episodes of the paper's
 normalised reward R̄, the success or the reference's pretty reward), success
 rate and mean rewards, and the budget spent: ``env_steps`` counts the steps of
@@ -35,13 +35,13 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from amaze.engine import BatchEngine
-from amaze.maze import Maze, as_mazes
-from amaze.policy import EpisodeResults, run_episodes
-from amaze.rewards import DEFAULT_DEADLINE_FACTOR
-from amaze.robot import Robot, as_robot
-from amaze.spec import MazeSpec
-from amaze.suite import rotations
+from amaze.agents.engine import BatchEngine
+from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.agents.robot import Robot, as_robot
+from amaze.evaluation.policy import EpisodeResults, run_episodes
+from amaze.evaluation.suite import rotations
+from amaze.maze.maze import Maze, as_mazes
+from amaze.maze.spec import MazeSpec
 from evolution import EvolutionConfigError
 
 __all__ = [
@@ -107,7 +107,7 @@ class PopulationResult:
         return len(self.episodes) // len(self)
 
     def per_episode(self, name: str) -> np.ndarray:
-        """Field ``name`` of :class:`~amaze.policy.EpisodeResults` as a ``(P, M)`` array."""
+        """Field ``name`` of the episode results (:mod:`amaze.evaluation.policy`) as ``(P, M)``."""
         if self.episodes is None:
             raise EvolutionConfigError("this result does not hold its episodes")
         if name not in {f.name for f in fields(EpisodeResults)}:

@@ -65,12 +65,12 @@ from typing import Any
 
 import numpy as np
 
-from amaze.evaluation import Evaluator
-from amaze.policy import record_episode
-from amaze.robot import as_robot
-from amaze.runs import ProgressLog, config_from_dict, write_bytes, write_json
-from amaze.suite import PAPER_TRAINING_MAZE, rotations
-from amaze.trajectories import save_trajectory_png
+from amaze.agents.robot import as_robot
+from amaze.agents.trajectories import save_trajectory_png
+from amaze.evaluation.policy import record_episode
+from amaze.evaluation.protocol import Evaluator
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE, rotations
+from amaze.runs.folder import ProgressLog, config_from_dict, write_bytes, write_json
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.population import FITNESS, EvaluationBackend, PopulationEvaluator

@@ -28,9 +28,9 @@ import sys
 import time
 from pathlib import Path
 
-from amaze.description import STATS_COLUMNS, format_table, stats_rows
-from amaze.maze import Maze
-from amaze.render import render_mazes_grid, save_maze_png
+from amaze.maze.description import STATS_COLUMNS, format_table, stats_rows
+from amaze.maze.maze import Maze
+from amaze.maze.render import render_mazes_grid, save_maze_png
 
 #: Maze strings per class; seeds are fixed so the demo is reproducible.
 CLASS_EXAMPLES: dict[str, list[str]] = {
@@ -48,12 +48,12 @@ CLASS_EXAMPLES: dict[str, list[str]] = {
 
 def run_agents(out: Path, robot: str = "DD") -> None:
     """Evaluate the oracle and random controllers; save trajectories and the inputs test."""
-    from amaze.controllers import OracleController, RandomController
-    from amaze.evaluation import Evaluator
-    from amaze.inputs import evaluate_inputs, inputs_for_maze
-    from amaze.policy import record_episode
-    from amaze.suite import PAPER_EVALUATION_MAZE, standard_suite
-    from amaze.trajectories import save_episode_gif, save_trajectory_png
+    from amaze.agents.trajectories import save_episode_gif, save_trajectory_png
+    from amaze.evaluation.controllers import OracleController, RandomController
+    from amaze.evaluation.inputs import evaluate_inputs, inputs_for_maze
+    from amaze.evaluation.policy import record_episode
+    from amaze.evaluation.protocol import Evaluator
+    from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, standard_suite
 
     agents_dir = out / "agents"
     agents_dir.mkdir(parents=True, exist_ok=True)
@@ -103,8 +103,8 @@ EVOLUTION_SECONDS = 45.0
 
 def run_evolution(out: Path, seconds: float = EVOLUTION_SECONDS) -> None:
     """Evolve a DD agent with CMA-ES on the suite's trivial and simple mazes."""
-    from amaze.evaluation import Evaluator
-    from amaze.suite import standard_suite
+    from amaze.evaluation.protocol import Evaluator
+    from amaze.evaluation.suite import standard_suite
     from evolution.run import evolve
 
     mazes = [m.string for m in standard_suite().mazes if m.column in ("trivial", "simple")]

@@ -1,8 +1,8 @@
-"""A trained SB3 model as a policy of the shared protocol (:mod:`amaze.policy`).
+"""A trained SB3 model as a policy of the shared protocol (:mod:`amaze.evaluation.policy`).
 
 :class:`SB3Agent` maps a batch of observations in the ``AMaze-v0`` format to a
 batch of actions with ``model.predict(obs, deterministic=True)``, so SB3 agents
-go through the same evaluation protocol (:func:`amaze.evaluation.evaluate`) as
+go through the same evaluation protocol (:func:`amaze.evaluation.protocol.evaluate`) as
 evolved ones.
 
 Files: ``save(path)`` writes SB3's zip at ``path`` (``.zip`` is appended when
@@ -22,7 +22,7 @@ import numpy as np
 from stable_baselines3 import A2C, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from amaze.robot import Robot, as_robot
+from amaze.agents.robot import Robot, as_robot
 from rl_baselines import RLConfigError
 
 __all__ = ["ALGORITHMS", "SB3Agent", "algorithm_class"]

@@ -9,7 +9,7 @@
 ``--config FILE.json`` holds SB3 hyperparameters (``{"n_steps": 128, ...}``), or a
 whole config with a ``hyperparameters`` key; command-line options win over it.
 Replicates run as parallel worker processes (``--workers``, default one per
-core; see :mod:`amaze.replicates`), each writing its output to its folder's
+core; see :mod:`amaze.runs.replicates`), each writing its output to its folder's
 ``log.txt``. SB3's progress bar shows on a terminal (``--progress`` /
 ``--no-progress`` decide otherwise); TensorBoard logs go to the run folder's
 ``tensorboard/``. Bad input prints one line ``error: ...`` and exits with status 2.
@@ -22,7 +22,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from amaze.cli.common import CommandParser, read_json_object
+from amaze.runs.command import CommandParser, read_json_object
 from rl_baselines import RLConfigError
 
 __all__ = ["entry_point", "main"]
@@ -64,7 +64,7 @@ def _config(args: argparse.Namespace) -> dict[str, Any]:
 
 def _replicates(args: argparse.Namespace, argv: Sequence[str]) -> int:
     """Run seeds S..S+K-1 as parallel worker processes, each in ``OUT/seed-<s>``."""
-    from amaze.replicates import replicate_command
+    from amaze.runs.replicates import replicate_command
 
     try:
         return replicate_command(

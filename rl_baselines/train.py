@@ -1,14 +1,14 @@
 """Training SB3 A2C/PPO agents in the paper's regimes, with run folders and resume.
 
 The **direct** regime (paper §4): the agent trains on
-:data:`~amaze.suite.PAPER_TRAINING_MAZE` in its 4 rotations (environment ``k``
+:data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE` in its 4 rotations (environment ``k``
 plays rotation ``k % 4``; ``n_envs`` is a multiple of 4) and is evaluated every
-``eval_every`` env steps on :data:`~amaze.suite.PAPER_EVALUATION_MAZE`'s 4
+``eval_every`` env steps on :data:`~amaze.evaluation.suite.PAPER_EVALUATION_MAZE`'s 4
 rotations. Training stops when the budget (``budget_steps`` env steps) is spent
 or when all 4 evaluation episodes are optimal (paper reward R̄ = 1).
 
 The **interpolation** regime (paper §4): the 10 stages of
-``amaze.interpolation.curriculum(PAPER_TRAINING_MAZE)``, from a trivial 5x5 maze
+``amaze.curriculum.interpolation.curriculum(PAPER_TRAINING_MAZE)``, from a trivial 5x5 maze
 to the training maze. Stage ``k`` trains on stage maze ``k`` in its 4 rotations
 and is evaluated on them; it gets an equal share of the budget that is left
 (``remaining // stages_left``), so a stage that converges early hands its unused
@@ -57,12 +57,12 @@ import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
-from amaze.evaluation import Evaluator
-from amaze.policy import record_episode
-from amaze.robot import as_robot
-from amaze.runs import ProgressLog, config_from_dict, write_json
-from amaze.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, rotations
-from amaze.trajectories import save_trajectory_png
+from amaze.agents.robot import as_robot
+from amaze.agents.trajectories import save_trajectory_png
+from amaze.evaluation.policy import record_episode
+from amaze.evaluation.protocol import Evaluator
+from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, rotations
+from amaze.runs.folder import ProgressLog, config_from_dict, write_json
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, algorithm_class
 from rl_baselines.networks import small_cnn_kwargs
@@ -303,10 +303,10 @@ def _stages(config: TrainConfig) -> list[tuple[list[str], list[str]]]:
     if config.regime == "direct":
         return [(rotations(PAPER_TRAINING_MAZE), rotations(PAPER_EVALUATION_MAZE))]
     try:
-        from amaze.interpolation import curriculum
+        from amaze.curriculum.interpolation import curriculum
     except ImportError:
         raise RLConfigError(
-            "regime 'interpolation' is not available: amaze.interpolation.curriculum is missing"
+            "regime 'interpolation' is not available: amaze.curriculum.interpolation is missing"
         ) from None
     stages = [rotations(spec.to_string()) for spec in curriculum(PAPER_TRAINING_MAZE)]
     return [(mazes, mazes) for mazes in stages]

@@ -1,7 +1,7 @@
 """An SB3 ``VecEnv`` over the batch engine: all environments stepped together.
 
 SB3's own vectorisation (``DummyVecEnv``) loops over N Python environments;
-:class:`MazeVecEnv` instead drives one :class:`~amaze.engine.BatchEngine` with
+:class:`MazeVecEnv` instead drives one :class:`~amaze.agents.engine.BatchEngine` with
 N agents, so a step of all environments is one call into compiled code.
 Environment ``k`` plays ``mazes[k % len(mazes)]``.
 
@@ -32,13 +32,13 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
-from amaze.engine import BatchEngine
-from amaze.gym_env import action_space, observation_space
-from amaze.maze import Maze, as_mazes
-from amaze.policy import as_policy_observations
-from amaze.rewards import DEFAULT_DEADLINE_FACTOR
-from amaze.robot import Robot, as_robot
-from amaze.spec import MazeSpec
+from amaze.agents.engine import BatchEngine
+from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.agents.robot import Robot, as_robot
+from amaze.envs.gym_env import action_space, observation_space
+from amaze.evaluation.policy import as_policy_observations
+from amaze.maze.maze import Maze, as_mazes
+from amaze.maze.spec import MazeSpec
 from rl_baselines import RLConfigError
 
 __all__ = ["MazeVecEnv"]

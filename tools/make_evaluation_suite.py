@@ -1,6 +1,6 @@
 """Build the standard evaluation suite and write ``amaze/data/evaluation_suite.json``.
 
-The suite's definition lives in :mod:`amaze.suite`; this script runs it at the
+The suite's definition lives in :mod:`amaze.evaluation.suite`; this script runs it at the
 full sample size (10000 mazes per column) on all cores and stores the result,
 so that users and tests load it instantly.
 
@@ -16,7 +16,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from amaze.suite import SAMPLE_SIZE, build_suite
+from amaze.evaluation.suite import SAMPLE_SIZE, build_suite
 
 DEFAULT_OUTPUT = Path(__file__).resolve().parent.parent / "amaze" / "data" / "evaluation_suite.json"
 

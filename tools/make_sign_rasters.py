@@ -2,7 +2,7 @@
 
 The reference library (amaze-benchmarker 1.0) draws its built-in sign shapes
 with Qt (non-antialiased ``QPainterPath``, pen width 0.1 of the unit square).
-:mod:`amaze.sign_images` must reproduce those pixels exactly without Qt, so
+:mod:`amaze.maze.sign_images` must reproduce those pixels exactly without Qt, so
 this script renders every built-in shape at every size from 3 to 64 with the
 reference itself and stores the result as package data.
 

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from amaze.errors import AmazeError
-from amaze.signs import register_custom_signs
+from amaze.maze.signs import register_custom_signs
 
 EXIT_USAGE = 2
 
@@ -49,14 +49,14 @@ def _maze_strings(arguments: Sequence[str]) -> Iterator[str]:
 
 
 def _mazes(arguments: Sequence[str]) -> Iterator:
-    from amaze.maze import Maze
+    from amaze.maze.maze import Maze
 
     for text in _maze_strings(arguments):
         yield Maze.from_string(text)
 
 
 def _cmd_inspect(args: argparse.Namespace) -> None:
-    from amaze.description import describe, summary
+    from amaze.maze.description import describe, summary
 
     for index, maze in enumerate(_mazes(args.mazes)):
         if args.json:
@@ -66,8 +66,8 @@ def _cmd_inspect(args: argparse.Namespace) -> None:
 
 
 def _cmd_render(args: argparse.Namespace) -> None:
-    from amaze.maze import Maze
-    from amaze.render import RenderOptions, save_maze_png
+    from amaze.maze.maze import Maze
+    from amaze.maze.render import RenderOptions, save_maze_png
 
     maze = Maze.from_string(args.maze)
     options = RenderOptions(
@@ -86,7 +86,7 @@ def _cmd_render(args: argparse.Namespace) -> None:
 
 
 def _cmd_stats(args: argparse.Namespace) -> None:
-    from amaze.description import STATS_COLUMNS, format_table, stats_rows
+    from amaze.maze.description import STATS_COLUMNS, format_table, stats_rows
 
     rows = list(stats_rows(_mazes(args.mazes)))
     print(format_table(rows))
@@ -115,15 +115,15 @@ def _output_file(text: str | None, suffix: str) -> Path | None:
 
 
 def _controller(args: argparse.Namespace):
-    from amaze.controllers import make_controller
+    from amaze.evaluation.controllers import make_controller
 
     return make_controller(args.controller, args.robot, seed=args.seed)
 
 
 def _cmd_run(args: argparse.Namespace) -> None:
-    from amaze.maze import Maze
-    from amaze.policy import record_episode
-    from amaze.robot import as_robot
+    from amaze.agents.robot import as_robot
+    from amaze.evaluation.policy import record_episode
+    from amaze.maze.maze import Maze
 
     trajectory_png = _output_file(args.trajectory, ".png")
     gif = _output_file(args.gif, ".gif")
@@ -158,7 +158,7 @@ def _cmd_run(args: argparse.Namespace) -> None:
             f" {outcome['pretty_reward']:+.3f}, R̄ {outcome['paper_reward']:+.3f}"
         )
     if trajectory_png is not None or gif is not None:
-        from amaze.trajectories import save_episode_gif, save_trajectory_png
+        from amaze.agents.trajectories import save_episode_gif, save_trajectory_png
 
         caption = (
             f"{args.controller} controller · paper reward {outcome['paper_reward']:+.3f}"
@@ -173,7 +173,7 @@ def _cmd_run(args: argparse.Namespace) -> None:
 
 
 def _cmd_inputs(args: argparse.Namespace) -> None:
-    from amaze.inputs import evaluate_inputs, inputs_for_maze
+    from amaze.evaluation.inputs import evaluate_inputs, inputs_for_maze
 
     csv_path = _output_file(args.csv, ".csv")
     png_path = _output_file(args.png, ".png")
@@ -201,7 +201,7 @@ def _cmd_inputs(args: argparse.Namespace) -> None:
 
 
 def _cmd_suite(args: argparse.Namespace) -> None:
-    from amaze.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, standard_suite
+    from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, standard_suite
 
     render_path = _output_file(args.render, ".png")
     csv_path = _output_file(args.csv, ".csv")
@@ -209,7 +209,7 @@ def _cmd_suite(args: argparse.Namespace) -> None:
         raise UsageError("--csv needs --evaluate CONTROLLER")
     suite = standard_suite()
     if args.evaluate is not None:
-        from amaze.evaluation import evaluate
+        from amaze.evaluation.protocol import evaluate
 
         args.controller = args.evaluate
         policy = _controller(args)
@@ -228,8 +228,8 @@ def _cmd_suite(args: argparse.Namespace) -> None:
             print(f"  {maze.column:<9} {maze.row:<6} S={maze.surprisingness:.3f}  {maze.string}")
         print(f"paper pair: train {PAPER_TRAINING_MAZE}, evaluate {PAPER_EVALUATION_MAZE}")
     if render_path is not None:
-        from amaze.maze import Maze
-        from amaze.render import render_mazes_grid
+        from amaze.maze.maze import Maze
+        from amaze.maze.render import render_mazes_grid
 
         mazes = [Maze.from_string(m.string) for m in suite.mazes]
         columns = len({m.column for m in suite.mazes})
@@ -240,9 +240,9 @@ def _cmd_suite(args: argparse.Namespace) -> None:
 
 
 def _cmd_interpolate(args: argparse.Namespace) -> None:
-    from amaze.interpolation import interpolate, interpolation_start
-    from amaze.maze import Maze
-    from amaze.spec import MazeSpec
+    from amaze.curriculum.interpolation import interpolate, interpolation_start
+    from amaze.maze.maze import Maze
+    from amaze.maze.spec import MazeSpec
 
     render_path = _output_file(args.render, ".png")
     end = MazeSpec.from_string(args.end)  # parsed once: a seedless END draws one seed
@@ -261,7 +261,7 @@ def _cmd_interpolate(args: argparse.Namespace) -> None:
                 f" clues={counts['clues']} lures={counts['lures']} traps={counts['traps']}"
             )
     if render_path is not None:
-        from amaze.render import render_mazes_grid
+        from amaze.maze.render import render_mazes_grid
 
         labels = [f"{index}: {text}" for index, text in enumerate(strings)]
         columns = min(len(stages), 5)

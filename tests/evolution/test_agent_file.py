@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from amaze.agents.robot import as_robot
 from amaze.cli.main import main
-from amaze.controllers import make_controller
-from amaze.evaluation import Evaluator
-from amaze.robot import as_robot
+from amaze.evaluation.controllers import make_controller
+from amaze.evaluation.protocol import Evaluator
 from evolution import EvolutionConfigError
 from evolution.agent_file import (
     FORMAT,

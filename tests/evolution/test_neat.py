@@ -15,8 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from amaze.engine import BatchEngine
-from amaze.policy import run_episodes
+from amaze.agents.engine import BatchEngine
+from amaze.evaluation.policy import run_episodes
 from evolution import EvolutionConfigError
 from evolution.neat import (
     Genome,

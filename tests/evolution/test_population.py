@@ -7,11 +7,11 @@ import pickle
 import numpy as np
 import pytest
 
-from amaze.controllers import OracleController
-from amaze.engine import BatchEngine
-from amaze.evaluation import Evaluator
-from amaze.policy import run_episodes
-from amaze.suite import rotations
+from amaze.agents.engine import BatchEngine
+from amaze.evaluation.controllers import OracleController
+from amaze.evaluation.policy import run_episodes
+from amaze.evaluation.protocol import Evaluator
+from amaze.evaluation.suite import rotations
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkSpec
 from evolution.population import (

@@ -10,7 +10,7 @@ import pytest
 import torch
 from stable_baselines3 import A2C
 
-from amaze.evaluation import evaluate
+from amaze.evaluation.protocol import evaluate
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, algorithm_class
 from rl_baselines.vec_env import MazeVecEnv

@@ -158,11 +158,13 @@ def test_interpolation_regime_walks_the_ten_stages(tmp_path: Path) -> None:
 def test_replicates_run_one_process_per_seed(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import amaze.replicates
+    import amaze.runs.replicates
 
     plans: list[tuple[list, int | None]] = []
     monkeypatch.setattr(
-        amaze.replicates, "run_replicates", lambda plan, workers: plans.append((plan, workers)) or 0
+        amaze.runs.replicates,
+        "run_replicates",
+        lambda plan, workers: plans.append((plan, workers)) or 0,
     )
     argv = ["--algo", "a2c", "--seed=7", "--replicates", "3", "--workers", "2"]
     assert main([*argv, "--out", str(tmp_path), "--n-envs", "8"]) == 0

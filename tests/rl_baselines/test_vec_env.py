@@ -10,7 +10,7 @@ from stable_baselines3 import A2C, PPO
 from stable_baselines3.common.vec_env import VecCheckNan
 
 import amaze  # noqa: F401  (registers AMaze-v0)
-from amaze.engine import BatchEngine
+from amaze.agents.engine import BatchEngine
 from rl_baselines import RLConfigError
 from rl_baselines.networks import SmallCNN, small_cnn_kwargs
 from rl_baselines.vec_env import MazeVecEnv

@@ -1,0 +1,20 @@
+"""Agents in mazes: robots, what they perceive, how they are rewarded, and how they move.
+
+Above the maze core, below environments and evaluation:
+
+* :mod:`~amaze.agents.robot`: robot strings (``DD``, ``H15``, ``CC15``);
+* :mod:`~amaze.agents.observations`: discrete inputs and cell images;
+* :mod:`~amaze.agents.rewards`: the reference's rewards, ``pretty_reward`` and the paper's R̄;
+* :mod:`~amaze.agents.simulation`: one agent, the readable definition;
+* :mod:`~amaze.agents.tables`, :mod:`~amaze.agents.engine`: compiled per-cell tables
+  and the batch engine (many agents x many mazes), cross-checked with the simulation;
+* :mod:`~amaze.agents.trajectories`: pictures and animations of episodes.
+
+The batch engine imports numba; import it from :mod:`amaze.agents.engine`.
+"""
+
+from amaze.agents.rewards import RewardScheme, paper_reward, pretty_reward
+from amaze.agents.robot import Robot, as_robot
+from amaze.agents.simulation import Simulation
+
+__all__ = ["RewardScheme", "Robot", "Simulation", "as_robot", "paper_reward", "pretty_reward"]

@@ -1,0 +1,103 @@
+"""The native vector environment of ``AMaze-v0``, running on the batch engine.
+
+``gymnasium.make_vec("AMaze-v0", num_envs=N, vectorization_mode="vector_entry_point",
+maze=STR or [STR, ...], robot=...)`` returns :class:`MazeVectorEnv`: N agents
+stepped together in compiled code (not N Python environments). Agent ``k``
+plays maze ``k % len(mazes)``. Episodes restart in the same step they end
+(gymnasium's ``AutoresetMode.SAME_STEP``): the returned observation is the first
+of the new episode, and ``infos["final_obs"]`` / ``infos["final_info"]`` (with
+their ``_final_obs`` / ``_final_info`` masks) hold the last observation and the
+episode statistics, including both normalised rewards.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from amaze.agents.engine import BatchEngine
+from amaze.agents.robot import Robot, as_robot
+from amaze.envs.gym_env import DEFAULT_MAZE, action_space, observation_space
+from amaze.maze.maze import Maze, as_mazes
+from amaze.maze.spec import MazeSpec
+
+
+class MazeVectorEnv(VectorEnv):
+    """``num_envs`` agents in one or several mazes, on the batch engine."""
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "autoreset_mode": AutoresetMode.SAME_STEP,
+        "render_modes": [],
+    }
+
+    def __init__(
+        self,
+        num_envs: int,
+        maze: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str] = DEFAULT_MAZE,
+        robot: Robot | str = "DD",
+        deadline_factor: float = 4.0,
+    ) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs {num_envs!r} is not a positive integer")
+        self.mazes = as_mazes(maze)
+        self.robot = as_robot(robot)
+        self.num_envs = num_envs
+        self.engine = BatchEngine(
+            self.mazes, self.robot, num_envs, deadline_factor=deadline_factor, auto_reset=True
+        )
+        self.single_observation_space = observation_space(self.robot)
+        self.single_action_space = action_space(self.robot)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._image = not self.robot.discrete_inputs
+
+    def _format(self, observations: np.ndarray) -> np.ndarray:
+        return observations[:, None] if self._image else observations
+
+    def reset(
+        self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Restart every agent (the environment itself draws no random numbers)."""
+        super().reset(seed=seed)
+        return self._format(self.engine.reset()), {}
+
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        result = self.engine.step(np.asarray(actions))
+        infos: dict[str, Any] = {}
+        episodes = result.episodes
+        if len(episodes):
+            ended = np.zeros(self.num_envs, dtype=bool)
+            ended[episodes.agents] = True
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            finals = self._format(result.final_observations)
+            for index, agent in enumerate(episodes.agents):
+                final_obs[agent] = finals[index]
+            infos["final_obs"], infos["_final_obs"] = final_obs, ended
+            final_info: dict[str, Any] = {}
+            for key, values in (
+                ("success", episodes.success),
+                ("steps", episodes.steps),
+                ("collisions", episodes.collisions),
+                ("backsteps", episodes.backsteps),
+                ("len", episodes.path_length),
+                ("cumulative_reward", episodes.cumulative_reward),
+                ("pretty_reward", episodes.pretty_rewards()),
+                ("paper_reward", episodes.paper_rewards()),
+            ):
+                column = np.zeros(self.num_envs, dtype=np.asarray(values).dtype)
+                column[episodes.agents] = values
+                final_info[key], final_info[f"_{key}"] = column, ended
+            infos["final_info"], infos["_final_info"] = final_info, ended
+        return (
+            self._format(result.observations),
+            result.rewards,
+            result.terminated,
+            result.truncated,
+            infos,
+        )

@@ -1,0 +1,890 @@
+"""Input recognition: every discrete situation an agent may meet, with its correct action.
+
+The paper's second evaluation (beside solving a suite of mazes) does not
+suffer from cumulative failure: instead of following an agent through a maze,
+where one wrong turn may spoil everything after it, it shows the agent every
+cell content it could ever perceive, one at a time, and checks the action it
+picks. The inputs are enumerated from the sign types of a maze (its clues,
+lures and traps), exactly as the reference library's ``_all_inputs``
+(``AMAZE_REFERENCE.md`` §7), in its order:
+
+* **dead ends** (three walls): for each open side, arriving from nowhere (the
+  start) or through that side, without a sign and with each lure pointing to
+  each other side; the correct action is the open side. ``8 (1 + 3 nL)`` inputs;
+* **corridors** (two walls): for each of the 6 wall pairs and each of the two
+  open sides as arrival, without a sign and with each lure pointing anywhere but
+  the way out; the correct action is the other open side. ``12 (1 + 3 nL)``;
+* **intersections** (one wall): for each sign direction ``j`` and arrival side
+  ``k`` among the open sides, each clue pointing ``j`` (correct: ``j``; ``k``
+  may equal ``j``) and, when ``j != k``, each trap pointing ``j`` (correct: the
+  remaining open side). ``36 nC + 24 nT``. Optionally, intersections without a
+  sign, one for each ``(j, k)`` (correct: the first open side other than ``j``
+  and ``k``): nothing tells the way there, so their "correct" action is a
+  convention of the reference, and they are left out by default.
+
+The results are reported per (cell type, sign kind), as the reference does,
+and per the paper's four classes: **empty** (dead ends and corridors without a
+sign), **lure** (dead ends and corridors with a lure), **clue** (intersections
+with a clue) and **trap** (intersections with a trap).
+
+Difference from the reference: discrete (DD) agents *see* the signs. The
+reference never wrote the sign into the 8-float input (§7), so a DD agent could
+not tell a clue from a trap and its scores meant little; here the input holds
+the sign's lightness in the slot of the direction it points to, exactly as in
+a maze (:func:`amaze.agents.observations.discrete_input`). Hybrid robots get the
+``v x v`` image of the cell (uint8, ``round(255 x)``, as from the engine).
+Continuous robots are not supported (their inputs depend on the position
+inside the cell and cannot be enumerated).
+
+Observations are in the policy format of :mod:`amaze.evaluation.policy` (float32
+``(n, 8)`` or uint8 ``(n, 1, v, v)``), so :func:`evaluate_inputs` calls a
+policy once on the whole set.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from enum import StrEnum
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+from amaze.agents.observations import discrete_input, draw_cell
+from amaze.agents.robot import Robot, as_robot
+from amaze.errors import AmazeError
+from amaze.maze.directions import Direction
+from amaze.maze.maze import Maze
+from amaze.maze.render import Palette, palette
+from amaze.maze.sign_images import sign_frames
+from amaze.maze.signs import Sign, SignKind
+from amaze.maze.spec import MazeSpec
+
+__all__ = [
+    "CSV_COLUMNS",
+    "InputCase",
+    "InputClass",
+    "InputRecognition",
+    "InputRecognitionError",
+    "InputSet",
+    "InputType",
+    "enumerate_inputs",
+    "evaluate_inputs",
+    "inputs_for_maze",
+]
+
+#: Columns of the reference's ``inputs_recognition.csv`` (without its index column).
+CSV_COLUMNS: tuple[str, ...] = (
+    "Walls",
+    "Type",
+    "Sign",
+    "SignType",
+    "SignDirection",
+    "Source",
+    "Expected",
+    "Action",
+    "Success",
+)
+
+#: How the reference writes a missing value (no sign, no arrival side).
+NO_VALUE = "None"
+
+
+class InputRecognitionError(AmazeError):
+    """The input-recognition test cannot be run as asked (robot, signs or policy output)."""
+
+
+class InputType(StrEnum):
+    """The shape of a cell, named as in the reference's ``Type`` column."""
+
+    DEAD_END = "Dead-end"
+    CORRIDOR = "Corridor"
+    INTERSECTION = "Intersection"
+
+    @classmethod
+    def of_walls(cls, walls: Sequence[int]) -> InputType:
+        """Three walls: dead end; two: corridor; one: intersection."""
+        n = int(sum(walls))
+        try:
+            return {3: cls.DEAD_END, 2: cls.CORRIDOR, 1: cls.INTERSECTION}[n]
+        except KeyError:
+            raise InputRecognitionError(f"a cell with {n} walls is not a maze input") from None
+
+
+class InputClass(StrEnum):
+    """The paper's classes of inputs (plus sign-less intersections, when asked for)."""
+
+    EMPTY = "empty"
+    """A dead end or a corridor without a sign: go the only new way."""
+    LURE = "lure"
+    """A dead end or a corridor with a lure: ignore the sign."""
+    CLUE = "clue"
+    """An intersection with a clue: follow the sign."""
+    TRAP = "trap"
+    """An intersection with a trap: take neither the sign's way nor the way back."""
+    EMPTY_INTERSECTION = "empty_intersection"
+    """An intersection without a sign (optional; its correct action is a convention)."""
+
+
+#: The paper's four classes, in the paper's order.
+PAPER_CLASSES: tuple[InputClass, ...] = (
+    InputClass.EMPTY,
+    InputClass.LURE,
+    InputClass.CLUE,
+    InputClass.TRAP,
+)
+
+
+class InputCase(NamedTuple):
+    """One enumerated situation: the content of a cell and the correct action there."""
+
+    #: Walls on the sides E, N, W, S (1 = wall).
+    walls: tuple[int, int, int, int]
+    #: The side the agent came through (``None``: it starts there).
+    arrival: Direction | None
+    #: The correct action.
+    expected: Direction
+    #: The kind of the sign in the cell (``None``: no sign).
+    kind: SignKind | None = None
+    sign: Sign | None = None
+    #: Where the sign points.
+    sign_direction: Direction | None = None
+
+    @property
+    def input_type(self) -> InputType:
+        return InputType.of_walls(self.walls)
+
+    @property
+    def input_class(self) -> InputClass:
+        """The paper's class of this input."""
+        if self.input_type is InputType.INTERSECTION:
+            return {
+                SignKind.CLUE: InputClass.CLUE,
+                SignKind.TRAP: InputClass.TRAP,
+                None: InputClass.EMPTY_INTERSECTION,
+            }[self.kind]
+        return InputClass.LURE if self.kind is SignKind.LURE else InputClass.EMPTY
+
+    @property
+    def wall_code(self) -> str:
+        """The walls as the reference writes them: ``"0111"`` (E, N, W, S)."""
+        return "".join(str(w) for w in self.walls)
+
+    @property
+    def type_key(self) -> tuple[str, str]:
+        """The reference's statistics key: ``(Type, SignType)``, e.g. ``("Corridor", "LURE")``."""
+        return self.input_type.value, _name(self.kind)
+
+
+@dataclass(frozen=True, eq=False)
+class InputSet:
+    """Every input of the test for one robot, with the correct actions.
+
+    ``cases[k]`` describes input ``k`` and ``observations[k]`` is what the robot
+    perceives there, in the policy format (float32 ``(n, 8)`` or uint8
+    ``(n, 1, v, v)``, read-only). ``clues``, ``lures`` and ``traps`` are the
+    sign types the set was built from.
+    """
+
+    robot: Robot
+    cases: tuple[InputCase, ...]
+    observations: np.ndarray
+    clues: tuple[Sign, ...] = ()
+    lures: tuple[Sign, ...] = ()
+    traps: tuple[Sign, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.cases)
+
+    @property
+    def expected(self) -> np.ndarray:
+        """int64 ``(n,)``: the correct action of each input (0..3 = E, N, W, S)."""
+        return np.array([int(case.expected) for case in self.cases], dtype=np.int64)
+
+    @property
+    def walls(self) -> np.ndarray:
+        """uint8 ``(n, 4)``: the walls E, N, W, S of each input."""
+        return np.array([case.walls for case in self.cases], dtype=np.uint8).reshape(-1, 4)
+
+    @property
+    def arrivals(self) -> np.ndarray:
+        """int64 ``(n,)``: the arrival side of each input, -1 where there is none."""
+        return np.array([_side(case.arrival) for case in self.cases], dtype=np.int64)
+
+    @property
+    def sign_directions(self) -> np.ndarray:
+        """int64 ``(n,)``: where each input's sign points, -1 where there is no sign."""
+        return np.array([_side(case.sign_direction) for case in self.cases], dtype=np.int64)
+
+    @property
+    def input_types(self) -> tuple[InputType, ...]:
+        return tuple(case.input_type for case in self.cases)
+
+    @property
+    def classes(self) -> tuple[InputClass, ...]:
+        """The paper's class of each input."""
+        return tuple(case.input_class for case in self.cases)
+
+    def totals(self) -> dict[InputClass, int]:
+        """How many inputs each class holds (classes without inputs are left out)."""
+        totals: dict[InputClass, int] = {}
+        for input_class in self.classes:
+            totals[input_class] = totals.get(input_class, 0) + 1
+        return {c: totals[c] for c in InputClass if c in totals}
+
+
+# -- enumeration ---------------------------------------------------------------------
+
+
+def enumerate_inputs(
+    robot: Robot | str,
+    clues: Iterable[Sign | str] = (),
+    lures: Iterable[Sign | str] = (),
+    traps: Iterable[Sign | str] = (),
+    *,
+    empty_intersections: bool = False,
+) -> InputSet:
+    """All inputs for these sign types, in the reference's order (see the module docstring).
+
+    ``robot`` is a discrete (``DD``) or hybrid (``H15``...) robot; signs are
+    :class:`~amaze.maze.signs.Sign` objects or sign strings (``"1"``, ``"point-.5"``).
+    ``empty_intersections`` adds the sign-less intersections.
+
+    :raises InputRecognitionError: for a continuous robot or a value that is not a sign.
+    """
+    robot = as_robot(robot)
+    if not robot.discrete_outputs:
+        raise InputRecognitionError(
+            f"robot '{robot}': the input-recognition test needs discrete actions"
+            " (a DD or hybrid robot); continuous inputs cannot be enumerated"
+        )
+    clues = _as_signs("clues", clues)
+    lures = _as_signs("lures", lures)
+    traps = _as_signs("traps", traps)
+    if not isinstance(empty_intersections, bool):
+        raise InputRecognitionError(f"empty_intersections={empty_intersections!r} is not a bool")
+    cases = tuple(_all_cases(clues, lures, traps, empty_intersections))
+    observations = _observations(robot, cases)
+    observations.flags.writeable = False
+    return InputSet(robot, cases, observations, clues, lures, traps)
+
+
+def inputs_for_maze(
+    maze: Maze | MazeSpec | str, robot: Robot | str, *, empty_intersections: bool = False
+) -> InputSet:
+    """All inputs for the sign types of a maze (a :class:`Maze`, its spec or its string).
+
+    The sign lists are the spec's: as in maze generation, lures (traps) only
+    count when the maze has a lure (trap) probability.
+    """
+    if isinstance(maze, Maze):
+        spec = maze.spec
+    elif isinstance(maze, MazeSpec):
+        spec = maze
+    elif isinstance(maze, str):
+        spec = MazeSpec.from_string(maze)
+    else:
+        raise InputRecognitionError(f"expected a Maze, a MazeSpec or a maze string, not {maze!r}")
+    return enumerate_inputs(
+        robot, spec.clue, spec.lure, spec.trap, empty_intersections=empty_intersections
+    )
+
+
+def _as_signs(name: str, signs: object) -> tuple[Sign, ...]:
+    if isinstance(signs, (str, Sign)) or not isinstance(signs, Iterable):
+        raise InputRecognitionError(f"{name} must be a sequence of signs, not {signs!r}")
+    result = []
+    for sign in signs:
+        if isinstance(sign, str):
+            sign = Sign.from_string(sign)
+        if not isinstance(sign, Sign):
+            raise InputRecognitionError(f"{name}: {sign!r} is neither a Sign nor a sign string")
+        result.append(sign)
+    return tuple(result)
+
+
+def _all_cases(
+    clues: tuple[Sign, ...],
+    lures: tuple[Sign, ...],
+    traps: tuple[Sign, ...],
+    empty_intersections: bool,
+) -> Iterable[InputCase]:
+    """The reference's ``_all_inputs``; side sets are walked in ascending order as it does."""
+    d = Direction
+    sides = range(4)
+
+    def walls_of(walled: Iterable[int]) -> tuple[int, int, int, int]:
+        walled = set(walled)
+        return tuple(int(s in walled) for s in sides)  # type: ignore[return-value]
+
+    # Dead ends: one open side, the way out.
+    for exit_ in sides:
+        walls = walls_of(s for s in sides if s != exit_)
+        for arrival in (None, d(exit_)):
+            yield InputCase(walls, arrival, d(exit_))
+            for lure in lures:
+                for pointing in (s for s in sides if s != exit_):
+                    yield InputCase(walls, arrival, d(exit_), SignKind.LURE, lure, d(pointing))
+
+    # Corridors: two open sides, in through one, out through the other.
+    for first in range(3):
+        for second in range(first + 1, 4):
+            walls = walls_of((first, second))
+            openings = [s for s in sides if s not in (first, second)]
+            for arrival in openings:
+                exit_ = next(s for s in openings if s != arrival)
+                yield InputCase(walls, d(arrival), d(exit_))
+                for lure in lures:
+                    for pointing in (s for s in sides if s != exit_):
+                        yield InputCase(
+                            walls, d(arrival), d(exit_), SignKind.LURE, lure, d(pointing)
+                        )
+
+    # Intersections: one wall; a sign pointing j, arrival through k.
+    for wall in sides:
+        walls = walls_of((wall,))
+        openings = [s for s in sides if s != wall]
+        for j in openings:
+            for k in openings:
+                for clue in clues:
+                    yield InputCase(walls, d(k), d(j), SignKind.CLUE, clue, d(j))
+                remaining = next(s for s in openings if s not in (j, k))
+                if j != k:
+                    for trap in traps:
+                        yield InputCase(walls, d(k), d(remaining), SignKind.TRAP, trap, d(j))
+                if empty_intersections:
+                    yield InputCase(walls, d(k), d(remaining))
+
+
+def _observations(robot: Robot, cases: Sequence[InputCase]) -> np.ndarray:
+    """The policy-format observations of ``cases`` for ``robot``."""
+    if robot.discrete_inputs:
+        obs = np.zeros((len(cases), 8), dtype=np.float32)
+        for k, case in enumerate(cases):
+            value = None if case.sign is None else case.sign.value
+            obs[k] = discrete_input(
+                case.walls, _opt_int(case.arrival), value, _opt_int(case.sign_direction)
+            )
+        return obs
+    v = int(robot.vision)
+    images = np.zeros((len(cases), 1, v, v), dtype=np.uint8)
+    for k, case in enumerate(cases):
+        image = draw_cell(
+            case.walls,
+            v,
+            _opt_int(case.arrival),
+            case.sign,
+            _opt_int(case.sign_direction),
+        )
+        images[k, 0] = np.rint(image * 255.0).astype(np.uint8)
+    return images
+
+
+def _opt_int(direction: Direction | None) -> int | None:
+    return None if direction is None else int(direction)
+
+
+def _side(direction: Direction | None) -> int:
+    return -1 if direction is None else int(direction)
+
+
+def _name(value: Direction | SignKind | None) -> str:
+    """Enum names as the reference writes them (``EAST``, ``LURE``), ``"None"`` for none."""
+    return NO_VALUE if value is None else value.name
+
+
+# -- evaluation -----------------------------------------------------------------------
+
+
+def evaluate_inputs(policy: Any, inputs: InputSet) -> InputRecognition:
+    """Show every input of ``inputs`` to ``policy`` (one batch call) and score its actions.
+
+    The policy gets a writable copy of the observations; if it has a
+    ``reset(n_agents)`` method it is called first, so that a recurrent policy
+    meets each input afresh. ``bind`` is not called: there is no maze.
+
+    :raises InputRecognitionError: if the policy does not return one action 0..3 per input.
+    """
+    if not isinstance(inputs, InputSet):
+        raise InputRecognitionError(f"expected an InputSet, not {inputs!r}")
+    n = len(inputs)
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset(n)
+    actions = np.asarray(policy(inputs.observations.copy()))
+    if actions.size != n:
+        raise InputRecognitionError(f"the policy returned {actions.size} actions for {n} inputs")
+    actions = actions.reshape(n)
+    if not np.issubdtype(actions.dtype, np.integer):
+        raise InputRecognitionError(
+            f"discrete actions must be integers, the policy returned {actions.dtype}"
+        )
+    bad = (actions < 0) | (actions > 3)
+    if bad.any():
+        raise InputRecognitionError(
+            f"action {actions[bad][0]!r} is not a direction 0..3 (E, N, W, S)"
+        )
+    actions = actions.astype(np.int64)
+    actions.flags.writeable = False
+    return InputRecognition(inputs, actions)
+
+
+@dataclass(frozen=True, eq=False)
+class InputRecognition:
+    """The actions a policy chose on an :class:`InputSet`, and how many were correct.
+
+    Rates are fractions in [0, 1]. Per class: ``rates`` (the paper's classes,
+    and ``empty_intersection`` when the set has them), with ``counts`` (correct
+    inputs) and ``totals``. Per (cell type, sign kind) as the reference:
+    ``rates_per_type`` etc., keyed like ``("Corridor", "LURE")`` or
+    ``("Dead-end", "None")``. ``overall`` is the fraction of all inputs handled
+    correctly; ``class_average`` the mean of the rates of the paper's classes
+    present, so that each class weighs the same whatever its number of inputs.
+    """
+
+    inputs: InputSet
+    actions: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.inputs)
+
+    @property
+    def success(self) -> np.ndarray:
+        """bool ``(n,)``: whether each input got its correct action."""
+        return self.actions == self.inputs.expected
+
+    def _tally(self, keys: Sequence[Any]) -> tuple[dict[Any, int], dict[Any, int]]:
+        correct: dict[Any, int] = {}
+        totals: dict[Any, int] = {}
+        for key, ok in zip(keys, self.success, strict=True):
+            totals[key] = totals.get(key, 0) + 1
+            correct[key] = correct.get(key, 0) + int(ok)
+        return correct, totals
+
+    @property
+    def counts(self) -> dict[InputClass, int]:
+        """Correct inputs per class (classes present in the set only)."""
+        correct, totals = self._tally(self.inputs.classes)
+        return {c: correct[c] for c in InputClass if c in totals}
+
+    @property
+    def totals(self) -> dict[InputClass, int]:
+        """Inputs per class (classes present in the set only)."""
+        return self.inputs.totals()
+
+    @property
+    def rates(self) -> dict[InputClass, float]:
+        """Fraction of correct inputs per class (classes present in the set only)."""
+        correct, totals = self._tally(self.inputs.classes)
+        return {c: correct[c] / totals[c] for c in InputClass if c in totals}
+
+    @property
+    def counts_per_type(self) -> dict[tuple[str, str], int]:
+        """Correct inputs per ``(Type, SignType)``, in the order of first appearance."""
+        return self._tally([case.type_key for case in self.inputs.cases])[0]
+
+    @property
+    def totals_per_type(self) -> dict[tuple[str, str], int]:
+        """Inputs per ``(Type, SignType)``, in the order of first appearance."""
+        return self._tally([case.type_key for case in self.inputs.cases])[1]
+
+    @property
+    def rates_per_type(self) -> dict[tuple[str, str], float]:
+        """Fraction of correct inputs per ``(Type, SignType)`` (the reference's ``ratios``)."""
+        correct, totals = self._tally([case.type_key for case in self.inputs.cases])
+        return {key: correct[key] / totals[key] for key in totals}
+
+    @property
+    def overall(self) -> float:
+        """Fraction of all inputs handled correctly."""
+        return float(self.success.mean()) if len(self) else math.nan
+
+    @property
+    def class_average(self) -> float:
+        """Mean rate of the paper's four classes present in the set."""
+        rates = [rate for c, rate in self.rates.items() if c in PAPER_CLASSES]
+        return float(np.mean(rates)) if rates else math.nan
+
+    def summary(self) -> dict[str, Any]:
+        """A JSON-ready digest: overall and class-average rates, per-class and per-type figures."""
+        return {
+            "robot": self.inputs.robot.to_string(),
+            "n_inputs": len(self),
+            "overall": self.overall,
+            "class_average": self.class_average,
+            "rates": {c.value: r for c, r in self.rates.items()},
+            "counts": {c.value: n for c, n in self.counts.items()},
+            "totals": {c.value: n for c, n in self.totals.items()},
+            "rates_per_type": {"|".join(k): r for k, r in self.rates_per_type.items()},
+        }
+
+    def rows(self) -> list[list[str]]:
+        """One row of strings per input, in :data:`CSV_COLUMNS` (the reference's format)."""
+        rows = []
+        for case, action, ok in zip(self.inputs.cases, self.actions, self.success, strict=True):
+            rows.append(
+                [
+                    case.wall_code,
+                    case.input_type.value,
+                    NO_VALUE if case.sign is None else case.sign.to_string(),
+                    _name(case.kind),
+                    _name(case.sign_direction),
+                    _name(case.arrival),
+                    _name(case.expected),
+                    _name(Direction(int(action))),
+                    str(bool(ok)),
+                ]
+            )
+        return rows
+
+    def write_csv(self, path: str | os.PathLike) -> Path:
+        """Write :meth:`rows` with a header line to ``path`` (folders are created)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("w", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(CSV_COLUMNS)
+            writer.writerows(self.rows())
+        return path
+
+    def render_summary(
+        self, theme: str = "light", colorblind: bool = False, columns: int = 12
+    ) -> Image.Image:
+        """A picture of every input and the chosen action, grouped by class (see
+        :func:`save_summary_png`)."""
+        return _SummaryPicture(self, palette(theme, colorblind), columns).draw()
+
+    def save_summary_png(
+        self,
+        path: str | os.PathLike,
+        theme: str = "light",
+        colorblind: bool = False,
+        columns: int = 12,
+    ) -> Path:
+        """Write a summary picture to ``path`` (folders are created).
+
+        The header gives the overall rate and one rate bar per class. Below it,
+        one section per class shows every input as a tile: the cell as the robot
+        perceives it (white walls, the sign at its lightness on black, the side
+        the agent came from in red; hybrid robots: their own image, scaled up,
+        with the arrival pixel in red) and, outside the cell, a filled arrow on
+        the side of the chosen action: green when it is the correct one, red
+        otherwise, the correct side then being marked by an outlined blue
+        arrow. ``columns`` tiles per row.
+        """
+        image = self.render_summary(theme, colorblind, columns)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        image.save(path, format="PNG")
+        return path
+
+
+# -- the summary picture --------------------------------------------------------------
+
+_CLASS_TITLES = {
+    InputClass.EMPTY: ("Empty", "dead ends and corridors without a sign"),
+    InputClass.LURE: ("Lure", "dead ends and corridors with a lure: ignore it"),
+    InputClass.CLUE: ("Clue", "intersections with a clue: follow it"),
+    InputClass.TRAP: ("Trap", "intersections with a trap: avoid its way"),
+    InputClass.EMPTY_INTERSECTION: ("Empty intersection", "no sign: a conventional answer"),
+}
+
+_CORRECT = (46, 160, 67)
+_WRONG = (214, 39, 40)
+_ORIGIN = (229, 72, 77)
+_WALL = (255, 255, 255)
+_TILE = (0, 0, 0)
+
+
+def _font(size: int) -> Any:
+    try:
+        return ImageFont.load_default(size=size)
+    except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType
+        return ImageFont.load_default()
+
+
+@lru_cache(maxsize=128)
+def _sign_picture(sign: Sign, direction: int, size: int) -> Image.Image:
+    """The sign at its lightness, ``size`` px, antialiased by drawing 4x larger."""
+    frame = np.asarray(sign_frames(sign, 4 * size)[direction], dtype=np.float64)
+    big = Image.fromarray(np.round(np.clip(frame, 0, 1) * 255).astype(np.uint8), mode="L")
+    return big.reduce(4).convert("RGB")
+
+
+class _SummaryPicture:
+    """Lays out and draws the summary of an :class:`InputRecognition`."""
+
+    PAD = 20
+    GAP = 6
+    GUTTER = 96
+
+    def __init__(self, result: InputRecognition, colors: Palette, columns: int) -> None:
+        if isinstance(columns, bool) or not isinstance(columns, int) or columns < 1:
+            raise InputRecognitionError(f"columns={columns!r} must be a positive integer")
+        self.result = result
+        self.colors = colors
+        self.columns = columns
+        robot = result.inputs.robot
+        if robot.discrete_inputs:
+            self.cell = 42
+        else:
+            v = int(robot.vision)
+            self.cell = v * max(1, math.ceil(42 / v))
+        self.wall = max(2, round(self.cell / 14))
+        # A black plate around the cell, so that its walls show on any background.
+        self.ring = 4
+        self.arrow = self.ring + max(10, round(self.cell * 0.28))
+        self.slot = self.cell + 2 * self.arrow
+        self.expected_color = colors.path
+        self.fonts = {size: _font(size) for size in (12, 13, 15, 22)}
+        self.muted = _mix(colors.text, colors.background, 0.45)
+        self.faint = _mix(colors.text, colors.background, 0.85)
+        self.plate_edge = _mix(colors.text, colors.background, 0.7)
+
+    # layout helpers
+    @property
+    def width(self) -> int:
+        return 2 * self.PAD + self.GUTTER + self.columns * (self.slot + self.GAP) - self.GAP
+
+    def _groups(self) -> list[tuple[InputClass, list[list[int]]]]:
+        """Per class present: its inputs split by cell type (each group starts a row)."""
+        cases = self.result.inputs.cases
+        groups: list[tuple[InputClass, list[list[int]]]] = []
+        for input_class in InputClass:
+            indices = [k for k, case in enumerate(cases) if case.input_class is input_class]
+            if not indices:
+                continue
+            by_type: list[list[int]] = []
+            for k in indices:
+                if by_type and cases[by_type[-1][0]].input_type is cases[k].input_type:
+                    by_type[-1].append(k)
+                else:
+                    by_type.append([k])
+            groups.append((input_class, by_type))
+        return groups
+
+    def draw(self) -> Image.Image:
+        groups = self._groups()
+        header_h = 150
+        section_title_h = 44
+        row_h = self.slot + self.GAP
+        height = self.PAD + header_h
+        for _, by_type in groups:
+            rows = sum(math.ceil(len(g) / self.columns) for g in by_type)
+            height += section_title_h + rows * row_h + 14
+        height += self.PAD
+        image = Image.new("RGB", (self.width, height), self.colors.background)
+        draw = ImageDraw.Draw(image)
+        self._draw_header(draw, image)
+        y = self.PAD + header_h
+        for input_class, by_type in groups:
+            y = self._draw_section(image, draw, y, input_class, by_type)
+        return image
+
+    def _draw_header(self, draw: ImageDraw.ImageDraw, image: Image.Image) -> None:
+        result = self.result
+        inputs = result.inputs
+        x, y = self.PAD, self.PAD
+        text = self.colors.text
+        draw.text((x, y), "Input recognition", fill=text, font=self.fonts[22])
+        signs = [
+            f"{name} {' '.join(s.to_string() for s in lst) or '-'}"
+            for name, lst in (
+                ("clues", inputs.clues),
+                ("lures", inputs.lures),
+                ("traps", inputs.traps),
+            )
+        ]
+        subtitle = f"robot {inputs.robot}  ·  {len(inputs)} inputs  ·  " + "  ·  ".join(signs)
+        draw.text((x, y + 30), subtitle, fill=self.muted, font=self.fonts[13])
+        # Rate cards: overall, then each class.
+        cards = [("overall", int(result.success.sum()), len(result))]
+        counts, totals = result.counts, result.totals
+        cards += [(c.value.replace("_", " "), counts[c], totals[c]) for c in totals]
+        card_w = min(170, (self.width - 2 * self.PAD - 10 * (len(cards) - 1)) // len(cards))
+        cy = y + 58
+        for k, (name, correct, total) in enumerate(cards):
+            cx = x + k * (card_w + 10)
+            rate = correct / total if total else 0.0
+            draw.text((cx, cy), name, fill=self.muted, font=self.fonts[13])
+            draw.text((cx, cy + 16), f"{100 * rate:.1f}%", fill=text, font=self.fonts[22])
+            draw.text(
+                (cx + card_w, cy + 24),
+                f"{correct}/{total}",
+                fill=self.muted,
+                font=self.fonts[12],
+                anchor="ra",
+            )
+            bar_y = cy + 48
+            draw.rectangle((cx, bar_y, cx + card_w, bar_y + 6), fill=self.faint)
+            filled = round(card_w * rate)
+            if filled > 0:
+                draw.rectangle((cx, bar_y, cx + filled, bar_y + 6), fill=_rate_color(rate))
+        self._draw_legend(image, draw, x, cy + 66)
+
+    def _draw_legend(self, image: Image.Image, draw: ImageDraw.ImageDraw, x: int, y: int) -> None:
+        font = self.fonts[12]
+        size = 14
+        items = [
+            ("expected, when missed", "outline", self.expected_color),
+            ("chosen, correct", "fill", _CORRECT),
+            ("chosen, wrong", "fill", _WRONG),
+            ("came from", "origin", _ORIGIN),
+        ]
+        for label, style, color in items:
+            box = (x, y, x + size, y + size)
+            if style == "origin":
+                draw.rectangle((x, y + 4, x + size, y + size - 4), fill=color)
+            else:
+                points = _triangle(box, 0)
+                if style == "fill":
+                    draw.polygon(points, fill=color)
+                else:
+                    draw.polygon(points, outline=color, width=2)
+            draw.text((x + size + 6, y), label, fill=self.muted, font=font)
+            x += size + 6 + int(draw.textlength(label, font=font)) + 22
+
+    def _draw_section(
+        self,
+        image: Image.Image,
+        draw: ImageDraw.ImageDraw,
+        y: int,
+        input_class: InputClass,
+        by_type: list[list[int]],
+    ) -> int:
+        result = self.result
+        text = self.colors.text
+        x0 = self.PAD
+        draw.line((x0, y + 4, self.width - self.PAD, y + 4), fill=self.faint, width=1)
+        title, description = _CLASS_TITLES[input_class]
+        draw.text((x0, y + 14), title, fill=text, font=self.fonts[15])
+        offset = int(draw.textlength(title, font=self.fonts[15])) + 10
+        draw.text((x0 + offset, y + 16), description, fill=self.muted, font=self.fonts[13])
+        correct, total = result.counts[input_class], result.totals[input_class]
+        rate = correct / total
+        draw.text(
+            (self.width - self.PAD, y + 14),
+            f"{correct}/{total} correct  ·  {100 * rate:.1f}%",
+            fill=_rate_color(rate),
+            font=self.fonts[15],
+            anchor="ra",
+        )
+        y += 44
+        cases = result.inputs.cases
+        for group in by_type:
+            label = cases[group[0]].input_type.value.replace("-", " ").lower()
+            label_y = y + self.slot // 2
+            draw.text((x0, label_y), label, fill=self.muted, font=self.fonts[13], anchor="lm")
+            for start in range(0, len(group), self.columns):
+                for col, k in enumerate(group[start : start + self.columns]):
+                    left = x0 + self.GUTTER + col * (self.slot + self.GAP)
+                    self._draw_tile(image, draw, left, y, k)
+                y += self.slot + self.GAP
+        return y + 14
+
+    def _draw_tile(
+        self, image: Image.Image, draw: ImageDraw.ImageDraw, left: int, top: int, k: int
+    ) -> None:
+        case = self.result.inputs.cases[k]
+        c, a, w = self.cell, self.arrow, self.wall
+        x0, y0 = left + a, top + a
+        x1, y1 = x0 + c - 1, y0 + c - 1
+        ring = self.ring
+        draw.rectangle(
+            (x0 - ring, y0 - ring, x1 + ring, y1 + ring), fill=_TILE, outline=self.plate_edge
+        )
+        if self.result.inputs.robot.discrete_inputs:
+            if case.sign is not None:
+                inset = w + max(2, c // 14)
+                size = c - 2 * inset
+                picture = _sign_picture(case.sign, int(case.sign_direction), size)
+                image.paste(picture, (x0 + inset, y0 + inset))
+            bands = {
+                0: (x1 - w + 1, y0, x1, y1),
+                1: (x0, y0, x1, y0 + w - 1),
+                2: (x0, y0, x0 + w - 1, y1),
+                3: (x0, y1 - w + 1, x1, y1),
+            }
+            for side, walled in enumerate(case.walls):
+                if walled:
+                    draw.rectangle(bands[side], fill=_WALL)
+            if case.arrival is not None:
+                half = max(3, c // 8)
+                mid_x, mid_y = (x0 + x1) // 2, (y0 + y1) // 2
+                marker = {
+                    0: (x1 - w + 1, mid_y - half, x1, mid_y + half),
+                    1: (mid_x - half, y0, mid_x + half, y0 + w - 1),
+                    2: (x0, mid_y - half, x0 + w - 1, mid_y + half),
+                    3: (mid_x - half, y1 - w + 1, mid_x + half, y1),
+                }[int(case.arrival)]
+                draw.rectangle(marker, fill=_ORIGIN)
+        else:
+            observation = self.result.inputs.observations[k, 0]
+            v = observation.shape[0]
+            rgb = np.repeat(observation[:, :, None], 3, axis=2)
+            if case.arrival is not None:
+                middle = v // 2
+                r, col = [(middle, v - 1), (0, middle), (middle, 0), (v - 1, middle)][
+                    int(case.arrival)
+                ]
+                rgb[r, col] = _ORIGIN
+            picture = Image.fromarray(rgb, mode="RGB").resize((c, c), Image.Resampling.NEAREST)
+            image.paste(picture, (x0, y0))
+        chosen = int(self.result.actions[k])
+        expected = int(case.expected)
+        if chosen == expected:
+            draw.polygon(_triangle(self._arrow_box(x0, y0, chosen), chosen), fill=_CORRECT)
+            return
+        draw.polygon(_triangle(self._arrow_box(x0, y0, chosen), chosen), fill=_WRONG)
+        draw.polygon(
+            _triangle(self._arrow_box(x0, y0, expected), expected),
+            outline=self.expected_color,
+            width=2,
+        )
+
+    def _arrow_box(self, x0: int, y0: int, side: int) -> tuple[int, int, int, int]:
+        """The square outside side ``side`` of the cell at ``(x0, y0)`` that holds an arrow."""
+        c, a = self.cell, self.arrow
+        gap = self.ring + 2
+        depth = a - gap - 1
+        half = min(c // 2 - 2, round(0.75 * a))
+        mid_x, mid_y = x0 + c // 2, y0 + c // 2
+        if side == 0:
+            return (x0 + c + gap, mid_y - half, x0 + c + gap + depth, mid_y + half)
+        if side == 2:
+            return (x0 - gap - depth - 1, mid_y - half, x0 - gap - 1, mid_y + half)
+        if side == 1:
+            return (mid_x - half, y0 - gap - depth - 1, mid_x + half, y0 - gap - 1)
+        return (mid_x - half, y0 + c + gap, mid_x + half, y0 + c + gap + depth)
+
+
+def _triangle(box: tuple[int, int, int, int], side: int) -> list[tuple[float, float]]:
+    """A triangle filling ``box`` and pointing towards ``side`` (0 = E, 1 = N, 2 = W, 3 = S)."""
+    x0, y0, x1, y1 = box
+    mx, my = (x0 + x1) / 2, (y0 + y1) / 2
+    return {
+        0: [(x0, y0), (x1, my), (x0, y1)],
+        1: [(x0, y1), (mx, y0), (x1, y1)],
+        2: [(x1, y0), (x0, my), (x1, y1)],
+        3: [(x0, y0), (mx, y1), (x1, y0)],
+    }[side]
+
+
+def _mix(a: tuple[int, int, int], b: tuple[int, int, int], t: float) -> tuple[int, int, int]:
+    """The colour ``t`` of the way from ``a`` to ``b``."""
+    r, g, b_ = (round(x + (y - x) * t) for x, y in zip(a, b, strict=True))
+    return r, g, b_
+
+
+def _rate_color(rate: float) -> tuple[int, int, int]:
+    """Red for 0, amber around 0.5, green for 1."""
+    amber = (222, 143, 5)
+    if rate < 0.5:
+        return _mix(_WRONG, amber, rate / 0.5)
+    return _mix(amber, _CORRECT, (rate - 0.5) / 0.5)

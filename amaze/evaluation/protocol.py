@@ -1,0 +1,276 @@
+"""The evaluation protocol: how every agent of this project is scored.
+
+One function, :func:`evaluate`, takes a policy (see :mod:`amaze.evaluation.policy`: a
+callable from a batch of observations to a batch of actions) and plays it on
+the standard evaluation suite (:mod:`amaze.evaluation.suite`: 18 mazes x 4 rotations =
+72 episodes, all stepped together on the batch engine), then runs the
+input-recognition test (:mod:`amaze.evaluation.inputs`) with the suite's signs. It
+returns an :class:`EvaluationReport`:
+
+* ``success_rate``: fraction of episodes that reached the goal;
+* ``paper_reward``: mean of the paper's normalised reward R̄ (1 for an optimal
+  run; the score of the paper's result tables). Run folders store it as
+  ``normalized_reward``;
+* ``pretty_reward``: mean of the reference library's normalised reward;
+* ``input_recognition``: fraction of all enumerated inputs handled correctly,
+  with the per-class rates (empty corridor, lure, clue, trap) in
+  ``input_rates``. It is ``None`` for continuous robots (their inputs are not
+  enumerable) and for privileged policies that read the maze itself (the
+  oracle), for which it has no meaning;
+
+and every episode's scores, aggregated per suite maze and per column.
+
+Evolved agents, SB3 agents and the built-in controllers all go through here,
+so their figures are comparable. :class:`Evaluator` prepares the mazes once
+(generation and compilation take longer than an evaluation) and can then
+evaluate many policies; :func:`evaluate` keeps one per robot and maze list.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from amaze.agents.engine import BatchEngine
+from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.agents.robot import Robot, as_robot
+from amaze.evaluation.inputs import InputSet, evaluate_inputs, inputs_for_maze
+from amaze.evaluation.policy import run_episodes
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE, EvaluationSuite, standard_suite
+from amaze.maze.maze import Maze, as_maze
+from amaze.maze.spec import MazeSpec
+
+__all__ = ["EpisodeScore", "EvaluationReport", "Evaluator", "evaluate"]
+
+#: The signs of the input-recognition test: those of the suite's mazes (C1, L.25, T.5).
+INPUT_SIGNS_MAZE = PAPER_TRAINING_MAZE
+
+
+@dataclass(frozen=True)
+class EpisodeScore:
+    """The outcome of one evaluation episode."""
+
+    maze: str
+    column: str
+    row: str
+    start: str
+    success: bool
+    paper_reward: float
+    pretty_reward: float
+    steps: int
+    collisions: int
+    backsteps: int
+    path_length: int
+
+
+def _mean(values: Sequence[float]) -> float:
+    return float(np.mean(values)) if len(values) else float("nan")
+
+
+@dataclass(frozen=True)
+class EvaluationReport:
+    """Scores of one policy: aggregated figures and every episode (see the module docstring)."""
+
+    robot: str
+    episodes: tuple[EpisodeScore, ...]
+    input_recognition: float | None = None
+    input_rates: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def success_rate(self) -> float:
+        return _mean([float(e.success) for e in self.episodes])
+
+    @property
+    def paper_reward(self) -> float:
+        return _mean([e.paper_reward for e in self.episodes])
+
+    @property
+    def pretty_reward(self) -> float:
+        return _mean([e.pretty_reward for e in self.episodes])
+
+    def grouped(self, key: str) -> dict[Any, dict[str, float]]:
+        """Success rate and mean rewards per value of an episode field (e.g. ``"column"``).
+
+        ``key="suite_maze"`` groups by (column, row): a suite maze's 4 rotations together.
+        """
+        groups: dict[Any, list[EpisodeScore]] = {}
+        for episode in self.episodes:
+            group = (episode.column, episode.row) if key == "suite_maze" else getattr(episode, key)
+            groups.setdefault(group, []).append(episode)
+        return {
+            group: {
+                "episodes": len(items),
+                "success_rate": _mean([float(e.success) for e in items]),
+                "paper_reward": _mean([e.paper_reward for e in items]),
+                "pretty_reward": _mean([e.pretty_reward for e in items]),
+            }
+            for group, items in groups.items()
+        }
+
+    def per_column(self) -> dict[str, dict[str, float]]:
+        return self.grouped("column")
+
+    def per_maze(self) -> dict[tuple[str, str], dict[str, float]]:
+        """Per suite maze (column, row), its four rotations together."""
+        return self.grouped("suite_maze")
+
+    def summary(self) -> dict[str, Any]:
+        """The aggregated figures, JSON-ready (the keys of a run folder's ``summary.json``)."""
+        return {
+            "robot": self.robot,
+            "episodes": len(self.episodes),
+            "success_rate": self.success_rate,
+            "normalized_reward": self.paper_reward,
+            "pretty_reward": self.pretty_reward,
+            "input_recognition": self.input_recognition,
+            "input_rates": dict(self.input_rates),
+        }
+
+    def write_csv(self, path: str | Path) -> None:
+        """One row per episode."""
+        names = list(EpisodeScore.__dataclass_fields__)
+        with open(path, "w", newline="", encoding="utf-8") as handle:
+            writer = csv.DictWriter(handle, fieldnames=names)
+            writer.writeheader()
+            for episode in self.episodes:
+                writer.writerow(asdict(episode))
+
+    def format(self) -> str:
+        """A plain-text summary: the aggregated figures and a per-column table."""
+        recognition = (
+            "n/a" if self.input_recognition is None else f"{100 * self.input_recognition:.1f}%"
+        )
+        lines = [
+            f"{len(self.episodes)} episodes ({self.robot}): success {100 * self.success_rate:.1f}%,"
+            f" mean R̄ {self.paper_reward:+.3f}, mean pretty reward {self.pretty_reward:+.3f},"
+            f" input recognition {recognition}",
+        ]
+        if self.input_rates:
+            rates = ", ".join(f"{k} {100 * v:.1f}%" for k, v in self.input_rates.items())
+            lines.append(f"  inputs per class: {rates}")
+        columns = self.per_column()
+        width = max(10, *(len(name) for name in columns))
+        lines.append(f"  {'column':<{width}} {'success':>8} {'mean R̄':>8} {'pretty':>8}")
+        for name, scores in columns.items():
+            lines.append(
+                f"  {name:<{width}} {100 * scores['success_rate']:7.1f}%"
+                f" {scores['paper_reward']:+8.3f} {scores['pretty_reward']:+8.3f}"
+            )
+        return "\n".join(lines)
+
+
+def _labelled_mazes(
+    mazes: EvaluationSuite | Sequence[Maze | MazeSpec | str] | None,
+) -> tuple[list[Maze], list[tuple[str, str]]]:
+    """The mazes to play and their (column, row) labels.
+
+    Mazes outside the suite are labelled by their own string (one column each).
+    """
+    if mazes is None:
+        mazes = standard_suite()
+    if isinstance(mazes, EvaluationSuite):
+        episodes = mazes.episodes()
+        return [Maze.from_string(rotated) for _, rotated in episodes], [
+            (m.column, m.row) for m, _ in episodes
+        ]
+    if not mazes:
+        raise ValueError("evaluate: give at least one maze")
+    generated = [as_maze(m) for m in mazes]
+    return generated, [(m.to_string(), "") for m in generated]
+
+
+def _maze_key(maze: Maze | MazeSpec | str) -> str:
+    """The canonical string of a maze, without generating it when given a string or spec."""
+    if isinstance(maze, str):
+        return MazeSpec.from_string(maze).to_string()
+    return maze.to_string()
+
+
+class Evaluator:
+    """The evaluation protocol prepared for one robot and one list of mazes.
+
+    ``mazes`` defaults to the standard suite (72 episodes); any list of mazes
+    (strings, specs or mazes) can be given instead, each played once.
+    ``inputs=False`` skips the input-recognition test.
+    """
+
+    def __init__(
+        self,
+        robot: Robot | str = "DD",
+        mazes: EvaluationSuite | Sequence[Maze | MazeSpec | str] | None = None,
+        *,
+        deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
+        inputs: bool = True,
+    ) -> None:
+        self.robot = as_robot(robot)
+        generated, self.labels = _labelled_mazes(mazes)
+        self.maze_strings = [m.to_string() for m in generated]
+        self.starts = [m.spec.start.shorthand for m in generated]
+        self.engine = BatchEngine(
+            generated, self.robot, len(generated), deadline_factor=deadline_factor
+        )
+        self.input_set: InputSet | None = None
+        if inputs and self.robot.kind != "continuous":
+            self.input_set = inputs_for_maze(INPUT_SIGNS_MAZE, self.robot)
+
+    def __call__(self, policy: Any) -> EvaluationReport:
+        return self.evaluate(policy)
+
+    def evaluate(self, policy: Any) -> EvaluationReport:
+        """Play ``policy`` once in every maze and run the input-recognition test."""
+        results = run_episodes(self.engine, policy)
+        episodes = tuple(
+            EpisodeScore(
+                maze=self.maze_strings[k],
+                column=self.labels[k][0],
+                row=self.labels[k][1],
+                start=self.starts[k],
+                success=bool(results.success[k]),
+                paper_reward=float(results.paper_reward[k]),
+                pretty_reward=float(results.pretty_reward[k]),
+                steps=int(results.steps[k]),
+                collisions=int(results.collisions[k]),
+                backsteps=int(results.backsteps[k]),
+                path_length=int(results.path_length[k]),
+            )
+            for k in range(len(self.maze_strings))
+        )
+        recognition, rates = None, {}
+        privileged = callable(getattr(policy, "bind", None))
+        if self.input_set is not None and not privileged:
+            outcome = evaluate_inputs(policy, self.input_set)
+            recognition, rates = float(outcome.overall), dict(outcome.rates)
+        return EvaluationReport(
+            robot=self.robot.to_string(),
+            episodes=episodes,
+            input_recognition=recognition,
+            input_rates=rates,
+        )
+
+
+@lru_cache(maxsize=8)
+def _evaluator(
+    robot: str, mazes: tuple[str, ...] | None, deadline_factor: float, inputs: bool
+) -> Evaluator:
+    return Evaluator(robot, list(mazes) if mazes is not None else None,
+                     deadline_factor=deadline_factor, inputs=inputs)  # fmt: skip
+
+
+def evaluate(
+    policy: Any,
+    robot: Robot | str = "DD",
+    mazes: Sequence[Maze | MazeSpec | str] | None = None,
+    *,
+    deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
+    inputs: bool = True,
+) -> EvaluationReport:
+    """Score ``policy`` on the standard suite (or on ``mazes``); see the module docstring."""
+    key = None if mazes is None else tuple(_maze_key(m) for m in mazes)
+    evaluator = _evaluator(as_robot(robot).to_string(), key, float(deadline_factor), inputs)
+    return evaluator.evaluate(policy)

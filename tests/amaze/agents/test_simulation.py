@@ -7,7 +7,6 @@ import pytest
 
 from amaze.agents.robot import Robot, RobotStringError
 from amaze.agents.simulation import EpisodeEndedError, Simulation
-
 from tests.amaze.conftest import load_reference
 
 REFERENCE = load_reference()

@@ -13,7 +13,6 @@ import pytest
 
 from amaze.cli.main import main
 from amaze.maze.description import INSPECT_KEYS, STATS_COLUMNS
-
 from tests.amaze.conftest import load_reference
 
 PRIMARY = load_reference()["mazes"]

@@ -12,7 +12,6 @@ from amaze.agents.simulation import Simulation
 from amaze.envs.gym_env import MazeEnv
 from amaze.errors import AmazeError, EpisodeEndedError
 from amaze.maze.directions import direction_between
-
 from tests.amaze.conftest import load_reference
 
 REFERENCE = load_reference()

@@ -37,7 +37,6 @@ from amaze.maze.directions import OFFSETS, Direction
 from amaze.maze.maze import Maze
 from amaze.maze.signs import Sign, SignKind
 from amaze.maze.spec import MazeSpec
-
 from tests.amaze.conftest import load_reference
 
 FIXTURE = load_reference()["inputs_evaluation_C1_L.25_T.5_always_east"]

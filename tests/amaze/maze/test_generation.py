@@ -16,7 +16,6 @@ from amaze.errors import MazeStringWarning
 from amaze.maze.directions import Direction, direction_between
 from amaze.maze.maze import Maze, MazeClass
 from amaze.maze.spec import MazeSpec, StartLocation
-
 from tests.amaze.conftest import load_reference
 
 REFERENCE = load_reference()

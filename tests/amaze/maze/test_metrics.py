@@ -25,7 +25,6 @@ from amaze.maze.metrics import (
     surprisingness,
 )
 from amaze.maze.spec import MazeSpec, StartLocation
-
 from tests.amaze.conftest import load_reference
 
 TOLERANCE = 1e-9

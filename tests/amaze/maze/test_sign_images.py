@@ -20,7 +20,6 @@ from amaze.maze.sign_images import (
     sign_frames_u8,
 )
 from amaze.maze.signs import BUILTIN_SHAPES, Sign, clear_custom_signs, register_custom_signs
-
 from tests.amaze.conftest import load_reference
 
 REFERENCE = load_reference()
@@ -200,8 +199,7 @@ def test_stored_rasters_are_small():
 
 def test_import_reads_no_file():
     code = (
-        "import amaze.maze.sign_images as m, sys;"
-        " sys.exit(m._raster_table.cache_info().currsize)"
+        "import amaze.maze.sign_images as m, sys; sys.exit(m._raster_table.cache_info().currsize)"
     )
     root = Path(__file__).parents[3]
     env = dict(os.environ, PYTHONPATH=str(root))

@@ -41,6 +41,7 @@ from amaze.maze import (
     SignKind,
     StartLocation,
     register_custom_signs,
+    rotations,
 )
 
 __version__ = "0.1.0"
@@ -52,7 +53,6 @@ _LAZY = {
     "as_robot": "amaze.agents.robot",
     "Evaluator": "amaze.evaluation.protocol",
     "evaluate": "amaze.evaluation.protocol",
-    "rotations": "amaze.evaluation.suite",
     "compute_metrics": "amaze.maze.metrics",
 }
 

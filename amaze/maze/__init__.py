@@ -16,7 +16,7 @@ The lowest layer of ``amaze``: it knows nothing of agents. A maze flows as
 """
 
 from amaze.maze.directions import Cell, Direction
-from amaze.maze.maze import Maze, MazeClass, as_maze, as_mazes
+from amaze.maze.maze import Maze, MazeClass, as_maze, as_mazes, rotations
 from amaze.maze.signs import PlacedSign, Sign, SignKind, register_custom_signs
 from amaze.maze.spec import MazeSpec, StartLocation
 
@@ -33,4 +33,5 @@ __all__ = [
     "as_maze",
     "as_mazes",
     "register_custom_signs",
+    "rotations",
 ]

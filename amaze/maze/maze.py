@@ -211,3 +211,26 @@ def as_mazes(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) -> 
     if not items:
         raise ValueError("mazes: give at least one maze")
     return [as_maze(m) for m in items]
+
+
+def rotations(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) -> list[str]:
+    """Canonical strings of every maze of ``mazes`` started from each corner, maze by maze.
+
+    The four rotations of a maze come in the reference's order (NW, NE, SW,
+    SE, :meth:`MazeSpec.all_rotations`); this is the one place that expands
+    mazes to their rotations (training sets, evaluation sets, the suite).
+    """
+    items = [mazes] if isinstance(mazes, str | Maze | MazeSpec) else list(mazes)
+    if not items:
+        raise ValueError("mazes: give at least one maze")
+    specs = []
+    for maze in items:
+        if isinstance(maze, Maze):
+            specs.append(maze.spec)
+        elif isinstance(maze, MazeSpec):
+            specs.append(maze)
+        elif isinstance(maze, str):
+            specs.append(MazeSpec.from_string(maze))
+        else:
+            raise ValueError(f"expected a MazeSpec, a Maze or a maze string, not {maze!r}")
+    return [rotated.to_string() for spec in specs for rotated in spec.all_rotations()]

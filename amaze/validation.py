@@ -1,0 +1,85 @@
+"""Checks of user-given values: one place for "is this a positive integer?".
+
+Configs, constructors and command-line options all take numbers from users.
+These helpers check one value and return it (typed), or raise the caller's
+error class (a :class:`ValueError` subclass) with a message naming the value,
+as the project's error contract asks. Booleans are never numbers here
+(``True`` is an ``int`` in Python, never a meaningful count), and non-finite
+floats are refused unless ``finite=False``.
+"""
+
+from __future__ import annotations
+
+import math
+from numbers import Integral, Real
+
+__all__ = ["check_integer", "check_number"]
+
+
+def _integer_kind(minimum: int | None, maximum: int | None) -> str:
+    """ "a positive integer", "an integer in [2, 100]"...: what the value should have been."""
+    if maximum is None:
+        if minimum is None:
+            return "an integer"
+        if minimum in (0, 1):
+            return "a non-negative integer" if minimum == 0 else "a positive integer"
+        return f"an integer >= {minimum}"
+    if minimum is None:
+        return f"an integer <= {maximum}"
+    return f"an integer in [{minimum}, {maximum}]"
+
+
+def check_integer(
+    name: str,
+    value: object,
+    *,
+    minimum: int | None = None,
+    maximum: int | None = None,
+    error: type[ValueError] = ValueError,
+) -> int:
+    """``value`` as an ``int`` if it is an integer (numpy's too) within the bounds.
+
+    Raises ``error("<name> <value> is not a positive integer")`` (or the like) otherwise.
+    """
+    number = None if isinstance(value, bool) or not isinstance(value, Integral) else int(value)
+    if (
+        number is None
+        or (minimum is not None and number < minimum)
+        or (maximum is not None and number > maximum)
+    ):
+        raise error(f"{name} {value!r} is not {_integer_kind(minimum, maximum)}")
+    return number
+
+
+def check_number(
+    name: str,
+    value: object,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    strict_minimum: bool = False,
+    finite: bool = True,
+    error: type[ValueError] = ValueError,
+) -> float:
+    """``value`` as a ``float`` if it is a real number (not a bool) within the bounds.
+
+    ``strict_minimum`` excludes ``minimum`` itself (``> 0`` rather than ``>= 0``);
+    ``finite`` refuses NaN and infinities (NaN is always refused).
+    """
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise error(f"{name} {value!r} is not a number")
+    number = float(value)
+    if math.isnan(number) or (finite and math.isinf(number)):
+        raise error(f"{name} {value!r} is not a finite number")
+    low_ok = minimum is None or (number > minimum if strict_minimum else number >= minimum)
+    high_ok = maximum is None or number <= maximum
+    if not (low_ok and high_ok):
+        if minimum is not None and maximum is not None:
+            opening = "(" if strict_minimum else "["
+            bounds = f"in {opening}{minimum}, {maximum}]"
+        elif minimum is not None:
+            bounds = f"> {minimum}" if strict_minimum else f">= {minimum}"
+        else:
+            bounds = f"<= {maximum}"
+        raise error(f"{name} {value!r} is not a number {bounds}")
+    return number

@@ -21,6 +21,10 @@ class SignError(AmazeError):
     """A sign specification (shape, lightness or custom image) is invalid."""
 
 
+class UsageError(AmazeError):
+    """A mistake in a command line (an unknown option, a missing ``--out``...)."""
+
+
 class EpisodeEndedError(AmazeError):
     """An agent was stepped after its episode reached the goal or the deadline.
 

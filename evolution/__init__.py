@@ -18,8 +18,10 @@
 
 from __future__ import annotations
 
+from amaze.errors import AmazeError
+
 __all__ = ["EvolutionConfigError"]
 
 
-class EvolutionConfigError(ValueError):
+class EvolutionConfigError(AmazeError):
     """Bad user input to the evolution package (algorithm, network, budget, config key...)."""

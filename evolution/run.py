@@ -1,7 +1,10 @@
-"""Evolution runs: the generation loop, budgets, run folders, checkpoints and resume.
+"""Evolution runs: the generation loop, budgets, checkpoints and the evolution run folder.
 
-:func:`evolve` drives any algorithm of :data:`ALGORITHMS` (CMA-ES over a fixed
-network, the NEAT-like GA) through the same loop::
+:class:`EvolutionRun` is the evolution trainer of the shared run lifecycle
+(:mod:`amaze.runs.lifecycle`: fresh start, resume, final report); this module
+holds only what is evolution's own. :func:`evolve` drives any algorithm of
+:data:`ALGORITHMS` (CMA-ES over a fixed network, the NEAT-like GA) through the
+same loop::
 
     candidates = algorithm.ask()
     result = backend.evaluate(algorithm.population_policy(candidates))
@@ -45,7 +48,8 @@ restart left).
 * ``fitness.png``: best, mean and champion fitness against env steps;
 * ``trajectories/``: the champion in the 4 rotations of the first training maze.
 
-**Resume.** :func:`resume` reloads the checkpoint and goes on. Every draw of
+**Resume.** :func:`resume` reloads the checkpoint and goes on (rows of
+``progress.csv`` written after it are dropped). Every draw of
 the algorithms comes from their own seeded generators, kept in the
 checkpoint, and evaluations are deterministic, so a run resumed after a kill
 reaches the same champion and the same progress rows (seconds aside) as an
@@ -55,27 +59,29 @@ where it stops depends on the machine's speed.
 
 from __future__ import annotations
 
-import json
+import argparse
 import os
 import pickle
 import time
-from dataclasses import asdict, dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from amaze.agents.robot import as_robot
-from amaze.agents.trajectories import save_trajectory_png
-from amaze.evaluation.policy import record_episode
-from amaze.evaluation.protocol import Evaluator
-from amaze.evaluation.suite import PAPER_TRAINING_MAZE, rotations
-from amaze.runs.folder import ProgressLog, config_from_dict, write_bytes, write_json
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE
+from amaze.maze import rotations
+from amaze.runs.config import RunConfig, option
+from amaze.runs.folder import ProgressLog, write_bytes
+from amaze.runs.lifecycle import Run, RunResult
+from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.population import FITNESS, EvaluationBackend, PopulationEvaluator
 
-__all__ = ["ALGORITHMS", "EvolveConfig", "EvolveResult", "evolve", "resume"]
+__all__ = ["ALGORITHMS", "EvolutionRun", "EvolveConfig", "evolve", "resume"]
 
 ALGORITHMS = ("cmaes", "neat")
 PROGRESS_FIELDS = ("generation", "steps", "seconds", "best", "mean", "champion", "eval_seconds")
@@ -84,35 +90,43 @@ CHECKPOINT_VERSION = 1
 
 
 @dataclass
-class EvolveConfig:
+class EvolveConfig(RunConfig):
     """Everything that defines an evolution run (stored as ``config.json``).
 
-    ``algorithm`` holds the algorithm's own options (:class:`~evolution.cmaes.CMAESConfig`
-    or :class:`~evolution.neat.NeatConfig` fields); ``budget_steps`` and
-    ``budget_seconds`` may each be ``None`` (no limit), not both.
+    ``budget_steps``, ``budget_seconds`` and ``max_generations`` may each be
+    ``None`` (no limit), not all three.
     """
 
-    algo: str = "cmaes"
-    robot: str = "DD"
-    mazes: list[str] = field(default_factory=lambda: [PAPER_TRAINING_MAZE])
-    fitness: str = "paper_reward"
-    budget_steps: int | None = 3_000_000
-    budget_seconds: float | None = None
-    max_generations: int | None = None
-    seed: int = 0
-    checkpoint_seconds: float = 10.0
-    algorithm: dict[str, Any] = field(default_factory=dict)
+    error = EvolutionConfigError
+    options_field = "algorithm"
+
+    algo: str = option("cmaes", "search algorithm", choices=ALGORITHMS)
+    mazes: list[str] = option(
+        default_factory=lambda: [PAPER_TRAINING_MAZE],
+        help="training mazes, each played in its 4 rotations (default: the paper's)",
+    )
+    fitness: str = option(
+        "paper_reward", "mean of this over the training episodes", choices=FITNESS
+    )
+    budget_steps: int | None = option(3_000_000, "environment steps of the scored episodes")
+    budget_seconds: float | None = option(None, "wall-clock seconds")
+    max_generations: int | None = option(None, "generations")
+    checkpoint_seconds: float = option(
+        10.0, "seconds of run time between checkpoints (0: after every generation)"
+    )
+    algorithm: dict[str, Any] = option(
+        default_factory=dict,
+        help="the algorithm's options (CMAESConfig or NeatConfig fields)",
+        command_line=False,
+    )
 
     def validate(self) -> EvolveConfig:
         """Check every field; raise :class:`EvolutionConfigError` naming the bad value."""
+        super().validate()
         if self.algo not in ALGORITHMS:
             raise EvolutionConfigError(
                 f"unknown algorithm {self.algo!r} (choose from {', '.join(ALGORITHMS)})"
             )
-        try:
-            self.robot = as_robot(self.robot).to_string()
-        except ValueError as error:
-            raise EvolutionConfigError(f"robot {self.robot!r}: {error}") from None
         if isinstance(self.mazes, str):
             self.mazes = [m for m in self.mazes.split(",") if m]
         if not isinstance(self.mazes, list) or not self.mazes:
@@ -123,45 +137,44 @@ class EvolveConfig:
             )
         for name in ("budget_steps", "max_generations"):
             value = getattr(self, name)
-            if value is not None and (
-                isinstance(value, bool) or not isinstance(value, int) or value < 1
-            ):
-                raise EvolutionConfigError(f"{name} {value!r} is not a positive integer")
-        seconds = self.budget_seconds
-        if seconds is not None and (
-            isinstance(seconds, bool) or not isinstance(seconds, int | float) or not seconds > 0
-        ):
-            raise EvolutionConfigError(f"budget_seconds {seconds!r} is not a positive number")
-        if self.budget_steps is None and seconds is None and self.max_generations is None:
+            if value is not None:
+                setattr(self, name, check_integer(name, value, minimum=1, error=self.error))
+        if self.budget_seconds is not None:
+            self.budget_seconds = check_number(
+                "budget_seconds",
+                self.budget_seconds,
+                minimum=0,
+                strict_minimum=True,
+                error=self.error,
+            )
+        if (self.budget_steps, self.budget_seconds, self.max_generations) == (None, None, None):
             raise EvolutionConfigError("a run needs a budget: budget_steps or budget_seconds")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise EvolutionConfigError(f"seed {self.seed!r} is not a non-negative integer")
-        every = self.checkpoint_seconds
-        if isinstance(every, bool) or not isinstance(every, int | float) or not every >= 0:
-            raise EvolutionConfigError(f"checkpoint_seconds {every!r} is not a number >= 0")
+        self.checkpoint_seconds = check_number(
+            "checkpoint_seconds", self.checkpoint_seconds, minimum=0, error=self.error
+        )
         if not isinstance(self.algorithm, dict):
             raise EvolutionConfigError(f"algorithm {self.algorithm!r} is not a JSON object")
         return self
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> EvolveConfig:
-        """A config from a JSON object; unknown keys are errors."""
-        return config_from_dict(cls, data, EvolutionConfigError).validate()
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """The config's options, and ``--population-size`` (an option of every algorithm)."""
+        super().add_arguments(parser)
+        parser.add_argument(
+            "--population-size", type=int, help="individuals per generation (algorithm option)"
+        )
 
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-@dataclass
-class EvolveResult:
-    """What :func:`evolve` returns: the champion (a policy) and the run's figures."""
-
-    champion: Any
-    fitness: float
-    generations: int
-    env_steps: int
-    seconds: float
-    summary: dict[str, Any]
+    @classmethod
+    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+        """``--budget-seconds`` alone is a wall-clock budget; ``--population-size`` is an option."""
+        if args.budget_seconds is not None and args.budget_steps is None:
+            data.setdefault("budget_steps", None)
+        if getattr(args, "population_size", None) is not None:
+            data["algorithm"] = {
+                **data.get("algorithm", {}),
+                "population_size": args.population_size,
+            }
+        return data
 
 
 def make_algorithm(config: EvolveConfig) -> Any:
@@ -187,22 +200,133 @@ class _State:
     version: int = CHECKPOINT_VERSION
 
 
-class _Run:
-    """One run folder and the loop that fills it."""
+class EvolutionRun(Run):
+    """The evolution trainer: generations of ask, evaluate, tell until a budget is spent."""
 
-    def __init__(self, out: Path, config: EvolveConfig, state: _State) -> None:
-        self.out = out
-        self.config = config
-        self.state = state
-        self.progress = ProgressLog(out / "progress.csv", PROGRESS_FIELDS)
-        self.checkpoint = out / "checkpoints" / "state.pkl"
-        self.backend: EvaluationBackend = PopulationEvaluator(
-            config.mazes, config.robot, fitness=config.fitness, rotations=True
-        )
+    config_class = EvolveConfig
+    progress_fields = PROGRESS_FIELDS
+    position_field = "generation"
+    outputs = ("champion.npz", "summary.json", "progress.csv", "fitness.png")
+    config: EvolveConfig
+
+    def __init__(self, out: str | os.PathLike, config: EvolveConfig) -> None:
+        super().__init__(out, config)
+        self.checkpoint = self.checkpoints / "state.pkl"
+        self.state = _State(algorithm=None)
         self.champion_fitness = -np.inf
-        champion = getattr(state.algorithm, "champion", None)
+
+    @cached_property
+    def backend(self) -> EvaluationBackend:
+        """Where populations are played: the training mazes in their rotations."""
+        c = self.config
+        return PopulationEvaluator(c.mazes, c.robot, fitness=c.fitness, rotations=True)
+
+    # -- the lifecycle's hooks --------------------------------------------------
+
+    def start(self) -> None:
+        self.state = _State(make_algorithm(self.config))  # bad algorithm options fail here
+        self.backend  # noqa: B018 (and bad mazes here, before anything is written)
+
+    def restore(self) -> int | None:
+        if not self.checkpoint.exists():
+            return None
+        state = pickle.loads(self.checkpoint.read_bytes())
+        if not isinstance(state, _State) or state.version != CHECKPOINT_VERSION:
+            raise EvolutionConfigError(
+                f"{str(self.checkpoint)!r} is not a checkpoint of this version"
+            )
+        self.state = state
+        self.backend  # noqa: B018
+        champion = state.algorithm.champion
         if champion is not None:
             self.champion_fitness = float(champion[1])
+        if state.generation and not (self.out / "champion.npz").exists():
+            self.save_champion()
+        return state.generation
+
+    def train(self, progress_bar: bool) -> None:
+        """Generations until a budget is spent, with a progress bar (ETA from the budget)."""
+        from tqdm import tqdm
+
+        c = self.config
+        if c.budget_steps is not None:
+            total, unit = c.budget_steps, "steps"
+        elif c.budget_seconds is not None:
+            total, unit = c.budget_seconds, "s"
+        else:
+            total, unit = c.max_generations, "gen"
+        with tqdm(
+            total=total,
+            initial=self._done(),
+            unit=unit,
+            unit_scale=True,
+            disable=not progress_bar,
+            desc=f"{c.algo} seed {c.seed}",
+            dynamic_ncols=True,
+        ) as bar:
+            last_checkpoint: float | None = None
+            while self.budget_left():
+                row = self.generation()
+                logging_started = time.perf_counter()
+                self.progress.append(row)
+                due = last_checkpoint is None or (
+                    self.state.seconds - last_checkpoint >= c.checkpoint_seconds
+                )
+                if due or not self.budget_left():
+                    self.save_checkpoint()
+                    last_checkpoint = self.state.seconds
+                self.state.seconds += time.perf_counter() - logging_started
+                rate = self.state.steps / max(self.state.eval_seconds, 1e-9)
+                bar.set_postfix(
+                    gen=row["generation"],
+                    best=f"{row['best']:.3f}",
+                    mean=f"{row['mean']:.3f}",
+                    champion=f"{row['champion']:.3f}",
+                    steps_s=f"{rate / 1e6:.2f}M",
+                    refresh=False,
+                )
+                bar.update(self._done() - bar.n)
+
+    def final_agent(self) -> Any:
+        if not (self.out / "champion.npz").exists():
+            raise EvolutionConfigError("the run evaluated no generation (budget too small?)")
+        return load_agent(self.out / "champion.npz")
+
+    def figures(self) -> dict[str, Any]:
+        c, s = self.config, self.state
+        return {
+            "algo": c.algo,
+            "robot": c.robot,
+            "seed": c.seed,
+            "mazes": list(c.mazes),
+            "fitness_measure": c.fitness,
+            "champion_fitness": self.champion_fitness,
+            "generations": s.generation,
+            "env_steps": s.steps,
+            "seconds": round(s.seconds, 3),
+            "evaluation_seconds": round(s.eval_seconds, 3),
+            "policy_steps_per_second": round(s.steps / max(s.eval_seconds, 1e-9)),
+            "budget_steps": c.budget_steps,
+            "budget_seconds": c.budget_seconds,
+        }
+
+    def trajectory_mazes(self) -> list[tuple[str, str]]:
+        """The champion in the 4 rotations of the first training maze."""
+        mazes = rotations(self.config.mazes[0])
+        return [(f"training-rotation-{index}", maze) for index, maze in enumerate(mazes)]
+
+    def extra_outputs(self) -> None:
+        plot_progress(self.out / "progress.csv", self.out / "fitness.png", self.config)
+
+    @classmethod
+    def headline(cls, summary: Mapping[str, Any]) -> str:
+        return (
+            f"{summary['generations']} generations,"
+            f" {summary['policy_steps_per_second'] / 1e6:.2f} M policy-steps/s;"
+            f" champion fitness {summary['champion_fitness']:.3f}; {super().headline(summary)}"
+        )
+
+    # -- evolution's own ----------------------------------------------------------
 
     def budget_left(self) -> bool:
         c, s = self.config, self.state
@@ -212,7 +336,7 @@ class _Run:
             return False
         if c.max_generations is not None and s.generation >= c.max_generations:
             return False
-        return not getattr(s.algorithm, "stopped", False)
+        return not s.algorithm.stopped
 
     def generation(self) -> dict[str, Any]:
         """Evaluate and breed one generation; return its progress row."""
@@ -268,88 +392,6 @@ class _Run:
             return min(self.state.seconds, self.config.budget_seconds)
         return self.state.generation
 
-    def loop(self, progress_bar: bool) -> None:
-        """Generations until a budget is spent, with a progress bar (ETA from the budget)."""
-        from tqdm import tqdm
-
-        c = self.config
-        if c.budget_steps is not None:
-            total, unit = c.budget_steps, "steps"
-        elif c.budget_seconds is not None:
-            total, unit = c.budget_seconds, "s"
-        else:
-            total, unit = c.max_generations, "gen"
-        with tqdm(
-            total=total,
-            initial=self._done(),
-            unit=unit,
-            unit_scale=True,
-            disable=not progress_bar,
-            desc=f"{c.algo} seed {c.seed}",
-            dynamic_ncols=True,
-        ) as bar:
-            last_checkpoint: float | None = None
-            while self.budget_left():
-                row = self.generation()
-                logging_started = time.perf_counter()
-                self.progress.append(row)
-                due = last_checkpoint is None or (
-                    self.state.seconds - last_checkpoint >= c.checkpoint_seconds
-                )
-                if due or not self.budget_left():
-                    self.save_checkpoint()
-                    last_checkpoint = self.state.seconds
-                self.state.seconds += time.perf_counter() - logging_started
-                rate = self.state.steps / max(self.state.eval_seconds, 1e-9)
-                bar.set_postfix(
-                    gen=row["generation"],
-                    best=f"{row['best']:.3f}",
-                    mean=f"{row['mean']:.3f}",
-                    champion=f"{row['champion']:.3f}",
-                    steps_s=f"{rate / 1e6:.2f}M",
-                    refresh=False,
-                )
-                bar.update(self._done() - bar.n)
-
-    def finish(self) -> EvolveResult:
-        """Evaluate the champion on the standard suite; write summary, plot and trajectories."""
-        if not (self.out / "champion.npz").exists():
-            raise EvolutionConfigError("the run evaluated no generation (budget too small?)")
-        champion = load_agent(self.out / "champion.npz")
-        summary = Evaluator(self.config.robot).evaluate(champion).summary()
-        s = self.state
-        summary.update(
-            {
-                "algo": self.config.algo,
-                "robot": self.config.robot,
-                "seed": self.config.seed,
-                "mazes": list(self.config.mazes),
-                "fitness_measure": self.config.fitness,
-                "champion_fitness": self.champion_fitness,
-                "generations": s.generation,
-                "env_steps": s.steps,
-                "seconds": round(s.seconds, 3),
-                "evaluation_seconds": round(s.eval_seconds, 3),
-                "policy_steps_per_second": round(s.steps / max(s.eval_seconds, 1e-9)),
-                "budget_steps": self.config.budget_steps,
-                "budget_seconds": self.config.budget_seconds,
-            }
-        )
-        write_json(self.out / "summary.json", summary)
-        plot_progress(self.out / "progress.csv", self.out / "fitness.png", self.config)
-        for index, maze in enumerate(rotations(self.config.mazes[0])):
-            _, trajectory = record_episode(maze, self.config.robot, champion)
-            save_trajectory_png(
-                maze,
-                trajectory,
-                self.out / "trajectories" / f"training-rotation-{index}.png",
-                robot=self.config.robot,
-                caption=True,
-            )
-        return EvolveResult(
-            champion, self.champion_fitness, s.generation, s.steps, s.seconds, summary
-        )
-
 
 def plot_progress(csv_path: Path, png_path: Path, config: EvolveConfig) -> None:
     """Best, mean and champion fitness of every generation against env steps."""
@@ -377,44 +419,12 @@ def plot_progress(csv_path: Path, png_path: Path, config: EvolveConfig) -> None:
 
 
 def evolve(
-    config: EvolveConfig | dict[str, Any], out: str | os.PathLike, *, progress_bar: bool = False
-) -> EvolveResult:
+    config: EvolveConfig | Mapping[str, Any], out: str | os.PathLike, *, progress_bar: bool = False
+) -> RunResult:
     """Run a fresh evolution as ``config`` says and write the run folder ``out``."""
-    if isinstance(config, dict):
-        config = EvolveConfig.from_dict(config)
-    config.validate()
-    path = Path(out)
-    if (path / "config.json").exists():
-        raise EvolutionConfigError(f"{str(path)!r} already holds a run (use resume)")
-    algorithm = make_algorithm(config)  # bad algorithm options fail before anything is written
-    run = _Run(path, config, _State(algorithm))  # and bad mazes here
-    path.mkdir(parents=True, exist_ok=True)
-    write_json(path / "config.json", config.to_dict())
-    run.loop(progress_bar)
-    return run.finish()
+    return EvolutionRun.fresh(config, out, progress_bar=progress_bar)
 
 
-def resume(out: str | os.PathLike, *, progress_bar: bool = False) -> EvolveResult:
+def resume(out: str | os.PathLike, *, progress_bar: bool = False) -> RunResult:
     """Continue the run in ``out`` from its latest checkpoint (same config, same seed)."""
-    path = Path(out)
-    config_path = path / "config.json"
-    if not config_path.exists():
-        raise EvolutionConfigError(f"{str(path)!r} holds no run (no config.json)")
-    try:
-        config = EvolveConfig.from_dict(json.loads(config_path.read_text()))
-    except json.JSONDecodeError as error:
-        raise EvolutionConfigError(f"{str(config_path)!r} is not JSON: {error}") from None
-    checkpoint = path / "checkpoints" / "state.pkl"
-    if checkpoint.exists():
-        state = pickle.loads(checkpoint.read_bytes())
-        if not isinstance(state, _State) or state.version != CHECKPOINT_VERSION:
-            raise EvolutionConfigError(f"{str(checkpoint)!r} is not a checkpoint of this version")
-        run = _Run(path, config, state)
-        run.progress.keep(lambda row: int(row["generation"]) <= state.generation)
-        if state.generation and not (path / "champion.npz").exists():
-            run.save_champion()
-    else:
-        run = _Run(path, config, _State(make_algorithm(config)))
-        run.progress.keep(lambda row: False)
-    run.loop(progress_bar)
-    return run.finish()
+    return EvolutionRun.resume(out, progress_bar=progress_bar)

@@ -115,13 +115,14 @@ def run_evolution(out: Path, seconds: float = EVOLUTION_SECONDS) -> None:
           f" {seconds:.0f} s budget:")  # fmt: skip
     config = {"algo": "cmaes", "mazes": mazes, "budget_steps": None, "budget_seconds": seconds}
     result = evolve(config, run_dir, progress_bar=sys.stderr.isatty())
+    s = result.summary
     print(
-        f"{result.generations} generations, {result.env_steps:,} env steps in"
-        f" {result.seconds:.1f} s ({result.summary['policy_steps_per_second'] / 1e6:.1f} M"
-        f" policy-steps/s while evaluating); champion fitness (mean R̄) {result.fitness:.3f}"
+        f"{s['generations']} generations, {result.env_steps:,} env steps in"
+        f" {result.seconds:.1f} s ({s['policy_steps_per_second'] / 1e6:.1f} M"
+        f" policy-steps/s while evaluating); champion fitness (mean R̄) {s['champion_fitness']:.3f}"
     )
     print("the champion on the standard evaluation suite:")
-    print(Evaluator("DD").evaluate(result.champion).format())
+    print(Evaluator("DD").evaluate(result.agent).format())
 
 
 def run(out: Path) -> Path:

@@ -14,8 +14,10 @@ stable-baselines3, which are imported here and nowhere in :mod:`amaze`.
 
 from __future__ import annotations
 
+from amaze.errors import AmazeError
+
 __all__ = ["RLConfigError"]
 
 
-class RLConfigError(ValueError):
+class RLConfigError(AmazeError):
     """Bad user input to the RL baselines (algorithm, regime, budget, config key...)."""

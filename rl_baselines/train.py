@@ -1,4 +1,9 @@
-"""Training SB3 A2C/PPO agents in the paper's regimes, with run folders and resume.
+"""Training SB3 A2C/PPO agents in the paper's regimes: the RL trainer of the run lifecycle.
+
+:class:`SB3Run` is the RL trainer of the shared run lifecycle
+(:mod:`amaze.runs.lifecycle`: fresh start, resume, final report); this module
+holds only what is RL's own: the regimes' stages, the periodic evaluation
+callback and the SB3 checkpoint.
 
 The **direct** regime (paper §4): the agent trains on
 :data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE` in its 4 rotations (environment ``k``
@@ -49,8 +54,8 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import torch
@@ -58,17 +63,19 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.agents.robot import as_robot
-from amaze.agents.trajectories import save_trajectory_png
-from amaze.evaluation.policy import record_episode
 from amaze.evaluation.protocol import Evaluator
-from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, rotations
-from amaze.runs.folder import ProgressLog, config_from_dict, write_json
+from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
+from amaze.maze import rotations
+from amaze.runs.config import RunConfig, option
+from amaze.runs.folder import write_json
+from amaze.runs.lifecycle import Run, RunResult
+from amaze.validation import check_integer
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, algorithm_class
 from rl_baselines.networks import small_cnn_kwargs
 from rl_baselines.vec_env import MazeVecEnv
 
-__all__ = ["REGIMES", "TrainConfig", "TrainResult", "resume", "stage_end", "train"]
+__all__ = ["REGIMES", "SB3Run", "TrainConfig", "resume", "stage_end", "train"]
 
 REGIMES = ("direct", "interpolation")
 PROGRESS_FIELDS = ("steps", "seconds", "eval_success", "eval_rbar", "stage")
@@ -77,37 +84,36 @@ OPTIMAL = 1.0 - 1e-9
 
 
 @dataclass
-class TrainConfig:
+class TrainConfig(RunConfig):
     """Everything that defines a training run (stored as ``config.json``)."""
 
-    algo: str = "ppo"
-    regime: str = "direct"
-    robot: str = "DD"
-    budget_steps: int = 3_000_000
-    seed: int = 0
-    eval_every: int = 50_000
-    n_envs: int = 4
-    tensorboard: bool = True
-    hyperparameters: dict[str, Any] = field(default_factory=dict)
+    error = RLConfigError
+    options_field = "hyperparameters"
+
+    algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
+    regime: str = option("direct", "training regime", choices=REGIMES)
+    budget_steps: int = option(3_000_000, "environment steps")
+    eval_every: int = option(50_000, "environment steps between evaluations and checkpoints")
+    n_envs: int = option(4, "environments stepped together (a multiple of 4: one per rotation)")
+    tensorboard: bool = option(True, "write TensorBoard logs to OUT/tensorboard")
+    hyperparameters: dict[str, Any] = option(
+        default_factory=dict,
+        help="SB3 hyperparameters overriding SB3's defaults",
+        command_line=False,
+    )
 
     def validate(self) -> TrainConfig:
         """Check every field; raise :class:`RLConfigError` naming the bad value."""
+        super().validate()
         algorithm_class(self.algo)
         self.algo = self.algo.lower()
         if self.regime not in REGIMES:
             raise RLConfigError(
                 f"unknown regime {self.regime!r} (choose from {', '.join(REGIMES)})"
             )
-        try:
-            self.robot = as_robot(self.robot).to_string()
-        except ValueError as error:
-            raise RLConfigError(f"robot {self.robot!r}: {error}") from None
         for name in ("budget_steps", "eval_every", "n_envs"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise RLConfigError(f"{name} {value!r} is not a positive integer")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise RLConfigError(f"seed {self.seed!r} is not a non-negative integer")
+            value = check_integer(name, getattr(self, name), minimum=1, error=RLConfigError)
+            setattr(self, name, value)
         if not isinstance(self.tensorboard, bool):
             raise RLConfigError(f"tensorboard {self.tensorboard!r} is not true or false")
         if self.n_envs % 4:
@@ -118,198 +124,6 @@ class TrainConfig:
             if reserved in self.hyperparameters:
                 raise RLConfigError(f"hyperparameter {reserved!r} is set by the trainer")
         return self
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        """A config from a JSON object; unknown keys are errors."""
-        return config_from_dict(cls, data, RLConfigError).validate()
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-@dataclass
-class TrainResult:
-    """What :func:`train` returns: the final agent and the run's figures."""
-
-    agent: SB3Agent
-    env_steps: int
-    seconds: float
-    converged: bool
-    summary: dict[str, Any]
-
-
-def _tensorboard_dir(config: TrainConfig, out: Path) -> str | None:
-    return str(out / "tensorboard") if config.tensorboard else None
-
-
-def _make_model(config: TrainConfig, env: MazeVecEnv, out: Path) -> BaseAlgorithm:
-    """A fresh SB3 model: default hyperparameters unless the config overrides them."""
-    cls = algorithm_class(config.algo)
-    kwargs = dict(config.hyperparameters)
-    kwargs.setdefault("tensorboard_log", _tensorboard_dir(config, out))
-    if as_robot(config.robot).discrete_inputs:
-        policy = "MlpPolicy"
-    else:
-        policy = "CnnPolicy"
-        kwargs["policy_kwargs"] = {**small_cnn_kwargs(), **kwargs.get("policy_kwargs", {})}
-    try:
-        return cls(policy, env, seed=config.seed, device="cpu", verbose=0, **kwargs)
-    except TypeError as error:
-        raise RLConfigError(f"bad hyperparameters for {config.algo}: {error}") from None
-
-
-def _score(report_summary: dict[str, Any]) -> tuple[float, float]:
-    return (float(report_summary["success_rate"]), float(report_summary["normalized_reward"]))
-
-
-class _RunState:
-    """The run folder's files and the evaluation state carried across resumes."""
-
-    def __init__(self, out: Path, config: TrainConfig) -> None:
-        self.out = out
-        self.config = config
-        self.checkpoints = out / "checkpoints"
-        self.progress = ProgressLog(out / "progress.csv", PROGRESS_FIELDS)
-        self.seconds_before = 0.0
-        self.best: tuple[float, float] | None = None
-        self.converged = False
-        self.last_eval_steps = -1
-        self.stage = 0
-        self.stage_end: int | None = None
-        self.started = time.monotonic()
-
-    def seconds(self) -> float:
-        return self.seconds_before + (time.monotonic() - self.started)
-
-    def append_progress(self, row: dict[str, Any]) -> None:
-        self.progress.append(row)
-
-    def trim_progress(self, steps: int) -> None:
-        """Drop progress rows written after the checkpoint being resumed."""
-        self.progress.keep(lambda row: int(row["steps"]) <= steps)
-
-    def save_checkpoint(self, model: BaseAlgorithm) -> None:
-        self.checkpoints.mkdir(parents=True, exist_ok=True)
-        tmp = self.checkpoints / ".model.tmp.zip"
-        model.save(tmp)
-        os.replace(tmp, self.checkpoints / "model.zip")
-        write_json(
-            self.checkpoints / "state.json",
-            {
-                "num_timesteps": int(model.num_timesteps),
-                "seconds": self.seconds(),
-                "best": list(self.best) if self.best is not None else None,
-                "converged": self.converged,
-                "last_eval_steps": self.last_eval_steps,
-                "stage": self.stage,
-                "stage_end": self.stage_end,
-            },
-        )
-
-    def load_state(self) -> dict[str, Any]:
-        state = json.loads((self.checkpoints / "state.json").read_text())
-        self.seconds_before = float(state["seconds"])
-        self.best = tuple(state["best"]) if state["best"] is not None else None
-        self.converged = bool(state["converged"])
-        self.last_eval_steps = int(state["last_eval_steps"])
-        self.stage = int(state["stage"])
-        self.stage_end = state["stage_end"]
-        self.started = time.monotonic()
-        return state
-
-
-class _EvaluationCallback(BaseCallback):
-    """Every ``eval_every`` steps, at the start of a rollout: evaluate, log, checkpoint.
-
-    Stops training (at the next step) once every evaluation episode is optimal.
-    """
-
-    def __init__(self, run: _RunState, evaluator: Evaluator | None, robot: str) -> None:
-        super().__init__(verbose=0)
-        self.run = run
-        self.evaluator = evaluator
-        self.robot = robot
-
-    def evaluate_now(self) -> None:
-        """Evaluate the current model, update the champion, log and checkpoint."""
-        run, model = self.run, self.model
-        steps = int(model.num_timesteps)
-        agent = SB3Agent(model, self.robot, run.config.algo)
-        assert self.evaluator is not None
-        report = self.evaluator.evaluate(agent)
-        summary = report.summary()
-        score = _score(summary)
-        if run.best is None or score > run.best:
-            run.best = score
-            agent.save(run.out / "champion.zip")
-        run.converged = all(e.paper_reward >= OPTIMAL for e in report.episodes)
-        run.last_eval_steps = steps
-        self.logger.record("eval/success_rate", score[0])
-        self.logger.record("eval/rbar", score[1])
-        self.logger.record("eval/stage", run.stage)
-        self.logger.dump(steps)
-        run.append_progress(
-            {
-                "steps": steps,
-                "seconds": round(run.seconds(), 3),
-                "eval_success": score[0],
-                "eval_rbar": score[1],
-                "stage": run.stage,
-            }
-        )
-        run.save_checkpoint(model)
-
-    def _on_rollout_start(self) -> None:
-        steps = int(self.model.num_timesteps)
-        if steps == 0 or steps - self.run.last_eval_steps >= self.run.config.eval_every:
-            self.evaluate_now()
-
-    def _on_step(self) -> bool:
-        return not self.run.converged
-
-
-def _final_outputs(run: _RunState, agent: SB3Agent, env_steps: int) -> dict[str, Any]:
-    """The standard-suite evaluation, trajectory PNGs and ``summary.json``."""
-    report = Evaluator(run.config.robot).evaluate(agent)
-    summary = report.summary()
-    for index, maze in enumerate(rotations(PAPER_EVALUATION_MAZE)):
-        _, trajectory = record_episode(maze, run.config.robot, agent)
-        save_trajectory_png(
-            maze,
-            trajectory,
-            run.out / "trajectories" / f"evaluation-rotation-{index}.png",
-            robot=run.config.robot,
-            caption=True,
-        )
-    summary.update(
-        {
-            "env_steps": int(env_steps),
-            "seconds": round(run.seconds(), 3),
-            "budget_steps": run.config.budget_steps,
-            "converged": run.converged,
-            "algo": run.config.algo,
-            "regime": run.config.regime,
-            "robot": run.config.robot,
-            "seed": run.config.seed,
-        }
-    )
-    write_json(run.out / "summary.json", summary)
-    return summary
-
-
-def _stages(config: TrainConfig) -> list[tuple[list[str], list[str]]]:
-    """(training mazes, evaluation mazes) of every stage of the regime."""
-    if config.regime == "direct":
-        return [(rotations(PAPER_TRAINING_MAZE), rotations(PAPER_EVALUATION_MAZE))]
-    try:
-        from amaze.curriculum.interpolation import curriculum
-    except ImportError:
-        raise RLConfigError(
-            "regime 'interpolation' is not available: amaze.curriculum.interpolation is missing"
-        ) from None
-    stages = [rotations(spec.to_string()) for spec in curriculum(PAPER_TRAINING_MAZE)]
-    return [(mazes, mazes) for mazes in stages]
 
 
 def stage_end(budget: int, used: int, stages_left: int) -> int:
@@ -323,98 +137,236 @@ def stage_end(budget: int, used: int, stages_left: int) -> int:
     return used + max(budget - used, 0) // stages_left
 
 
-def _env(config: TrainConfig, stages: list[tuple[list[str], list[str]]], stage: int) -> MazeVecEnv:
-    """The training environments of ``stage`` (one rotation per environment)."""
-    return MazeVecEnv(stages[stage][0], config.robot, config.n_envs, config.seed)
+def _stages(config: TrainConfig) -> list[tuple[list[str], list[str]]]:
+    """(training mazes, evaluation mazes) of every stage of the regime."""
+    if config.regime == "direct":
+        return [(rotations(PAPER_TRAINING_MAZE), rotations(PAPER_EVALUATION_MAZE))]
+    from amaze.curriculum.interpolation import curriculum
+
+    stages = [rotations(spec) for spec in curriculum(PAPER_TRAINING_MAZE)]
+    return [(mazes, mazes) for mazes in stages]
 
 
-def _tb_log_name(config: TrainConfig, stage: int) -> str:
-    return "direct" if config.regime == "direct" else f"stage-{stage}"
+class _EvaluationCallback(BaseCallback):
+    """Every ``eval_every`` steps, at the start of a rollout: evaluate, log, checkpoint.
 
-
-def _run(run: _RunState, model: BaseAlgorithm, progress_bar: bool = False) -> TrainResult:
-    """Train stage after stage from ``run.stage`` on, then write the final outputs.
-
-    ``model`` already has the environments of stage ``run.stage``.
+    Stops training (at the next step) once every evaluation episode is optimal.
     """
-    config = run.config
-    stages = _stages(config)
-    callback = _EvaluationCallback(run, None, config.robot)
-    while True:
-        eval_mazes = stages[run.stage][1]
-        used = int(model.num_timesteps)
-        if run.stage_end is None:
-            run.stage_end = stage_end(config.budget_steps, used, len(stages) - run.stage)
-        callback.evaluator = Evaluator(config.robot, mazes=eval_mazes, inputs=False)
-        remaining = run.stage_end - used
-        if remaining > 0 and not run.converged:
-            model.learn(
-                total_timesteps=remaining,
-                callback=callback,
-                reset_num_timesteps=False,
-                tb_log_name=_tb_log_name(config, run.stage),
-                progress_bar=progress_bar,
+
+    def __init__(self, run: SB3Run) -> None:
+        super().__init__(verbose=0)
+        self.run = run
+        self.evaluator: Evaluator | None = None
+
+    def evaluate_now(self) -> None:
+        """Evaluate the current model, update the champion, log and checkpoint."""
+        run, model = self.run, self.model
+        steps = int(model.num_timesteps)
+        agent = SB3Agent(model, run.config.robot, run.config.algo)
+        assert self.evaluator is not None
+        report = self.evaluator.evaluate(agent)
+        summary = report.summary()
+        score = (float(summary["success_rate"]), float(summary["normalized_reward"]))
+        if run.best is None or score > run.best:
+            run.best = score
+            agent.save(run.out / "champion.zip")
+        run.converged = all(e.paper_reward >= OPTIMAL for e in report.episodes)
+        run.last_eval_steps = steps
+        self.logger.record("eval/success_rate", score[0])
+        self.logger.record("eval/rbar", score[1])
+        self.logger.record("eval/stage", run.stage)
+        self.logger.dump(steps)
+        run.progress.append(
+            {
+                "steps": steps,
+                "seconds": round(run.seconds(), 3),
+                "eval_success": score[0],
+                "eval_rbar": score[1],
+                "stage": run.stage,
+            }
+        )
+        run.save_checkpoint()
+
+    def _on_rollout_start(self) -> None:
+        steps = int(self.model.num_timesteps)
+        if steps == 0 or steps - self.run.last_eval_steps >= self.run.config.eval_every:
+            self.evaluate_now()
+
+    def _on_step(self) -> bool:
+        return not self.run.converged
+
+
+class SB3Run(Run):
+    """The RL trainer: SB3 learns stage after stage, evaluated every ``eval_every`` steps."""
+
+    config_class = TrainConfig
+    progress_fields = PROGRESS_FIELDS
+    position_field = "steps"
+    outputs = ("champion.zip", "summary.json", "progress.csv", "tensorboard/")
+    config: TrainConfig
+
+    def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
+        super().__init__(out, config)
+        torch.set_num_threads(1)
+        self.stages = _stages(config)
+        self.model: BaseAlgorithm | None = None
+        self.seconds_before = 0.0
+        self.best: tuple[float, float] | None = None
+        self.converged = False
+        self.last_eval_steps = -1
+        self.stage = 0
+        self.stage_end: int | None = None
+        self.started = time.monotonic()
+
+    def seconds(self) -> float:
+        """Wall-clock seconds of training, over every resumed part of the run."""
+        return self.seconds_before + (time.monotonic() - self.started)
+
+    def _env(self, stage: int) -> MazeVecEnv:
+        """The training environments of ``stage`` (one rotation per environment)."""
+        c = self.config
+        return MazeVecEnv(self.stages[stage][0], c.robot, c.n_envs, c.seed)
+
+    def _tensorboard_dir(self) -> str | None:
+        return str(self.out / "tensorboard") if self.config.tensorboard else None
+
+    # -- the lifecycle's hooks --------------------------------------------------
+
+    def start(self) -> None:
+        """A fresh SB3 model: SB3's default hyperparameters unless the config overrides them."""
+        config = self.config
+        kwargs = dict(config.hyperparameters)
+        kwargs.setdefault("tensorboard_log", self._tensorboard_dir())
+        if as_robot(config.robot).discrete_inputs:
+            policy = "MlpPolicy"
+        else:
+            policy = "CnnPolicy"
+            kwargs["policy_kwargs"] = {**small_cnn_kwargs(), **kwargs.get("policy_kwargs", {})}
+        try:
+            self.model = algorithm_class(config.algo)(
+                policy, self._env(0), seed=config.seed, device="cpu", verbose=0, **kwargs
             )
-        # A converged stage stopped one step after its last evaluation, before any
-        # training on it: the model evaluated is the final one, so no second row.
-        if run.last_eval_steps != int(model.num_timesteps) and not run.converged:
-            callback.init_callback(model)
-            callback.evaluate_now()
-        if run.stage + 1 == len(stages):
-            break
-        run.stage += 1
-        run.stage_end = None
-        run.converged = False
-        run.best = None
-        model.set_env(_env(config, stages, run.stage))
-        run.save_checkpoint(model)
-    agent = SB3Agent(model, config.robot, config.algo)
-    summary = _final_outputs(run, agent, int(model.num_timesteps))
-    return TrainResult(agent, int(model.num_timesteps), run.seconds(), run.converged, summary)
+        except TypeError as error:  # bad hyperparameters fail here, before any file is written
+            raise RLConfigError(f"bad hyperparameters for {config.algo}: {error}") from None
+
+    def restore(self) -> int | None:
+        """The SB3 model and the evaluation state of the last checkpoint."""
+        model_file, state_file = self.checkpoints / "model.zip", self.checkpoints / "state.json"
+        if not (model_file.exists() and state_file.exists()):
+            return None
+        state = json.loads(state_file.read_text())
+        self.seconds_before = float(state["seconds"])
+        self.best = tuple(state["best"]) if state["best"] is not None else None
+        self.converged = bool(state["converged"])
+        self.last_eval_steps = int(state["last_eval_steps"])
+        self.stage = int(state["stage"])
+        self.stage_end = state["stage_end"]
+        self.started = time.monotonic()
+        self.model = algorithm_class(self.config.algo).load(
+            model_file,
+            env=self._env(self.stage),
+            device="cpu",
+            tensorboard_log=self._tensorboard_dir(),
+        )
+        self.model.num_timesteps = int(state["num_timesteps"])
+        return self.model.num_timesteps
+
+    def train(self, progress_bar: bool) -> None:
+        """Train stage after stage from ``self.stage`` on."""
+        config, model = self.config, self.model
+        assert model is not None
+        callback = _EvaluationCallback(self)
+        while True:
+            used = int(model.num_timesteps)
+            if self.stage_end is None:
+                stages_left = len(self.stages) - self.stage
+                self.stage_end = stage_end(config.budget_steps, used, stages_left)
+            eval_mazes = self.stages[self.stage][1]
+            callback.evaluator = Evaluator(config.robot, mazes=eval_mazes, inputs=False)
+            remaining = self.stage_end - used
+            if remaining > 0 and not self.converged:
+                model.learn(
+                    total_timesteps=remaining,
+                    callback=callback,
+                    reset_num_timesteps=False,
+                    tb_log_name="direct" if config.regime == "direct" else f"stage-{self.stage}",
+                    progress_bar=progress_bar,
+                )
+            # A converged stage stopped one step after its last evaluation, before any
+            # training on it: the model evaluated is the final one, so no second row.
+            if self.last_eval_steps != int(model.num_timesteps) and not self.converged:
+                callback.init_callback(model)
+                callback.evaluate_now()
+            if self.stage + 1 == len(self.stages):
+                break
+            self.stage += 1
+            self.stage_end = None
+            self.converged = False
+            self.best = None
+            model.set_env(self._env(self.stage))
+            self.save_checkpoint()
+
+    def final_agent(self) -> SB3Agent:
+        assert self.model is not None
+        return SB3Agent(self.model, self.config.robot, self.config.algo)
+
+    def figures(self) -> dict[str, Any]:
+        assert self.model is not None
+        c = self.config
+        return {
+            "env_steps": int(self.model.num_timesteps),
+            "seconds": round(self.seconds(), 3),
+            "budget_steps": c.budget_steps,
+            "converged": self.converged,
+            "algo": c.algo,
+            "regime": c.regime,
+            "robot": c.robot,
+            "seed": c.seed,
+        }
+
+    def trajectory_mazes(self) -> list[tuple[str, str]]:
+        """The final agent in the 4 rotations of the paper's evaluation maze."""
+        mazes = rotations(PAPER_EVALUATION_MAZE)
+        return [(f"evaluation-rotation-{index}", maze) for index, maze in enumerate(mazes)]
+
+    @classmethod
+    def headline(cls, summary: Mapping[str, Any]) -> str:
+        regime = f"{summary['algo']} {summary['regime']}"
+        return f"{regime}, converged {summary['converged']}: {super().headline(summary)}"
+
+    # -- RL's own -------------------------------------------------------------------
+
+    def save_checkpoint(self) -> None:
+        """The model and the evaluation state, each written atomically."""
+        assert self.model is not None
+        self.checkpoints.mkdir(parents=True, exist_ok=True)
+        tmp = self.checkpoints / ".model.tmp.zip"
+        self.model.save(tmp)
+        os.replace(tmp, self.checkpoints / "model.zip")
+        write_json(
+            self.checkpoints / "state.json",
+            {
+                "num_timesteps": int(self.model.num_timesteps),
+                "seconds": self.seconds(),
+                "best": list(self.best) if self.best is not None else None,
+                "converged": self.converged,
+                "last_eval_steps": self.last_eval_steps,
+                "stage": self.stage,
+                "stage_end": self.stage_end,
+            },
+        )
 
 
 def train(
-    config: TrainConfig | dict[str, Any], out: str | os.PathLike, *, progress_bar: bool = False
-) -> TrainResult:
+    config: TrainConfig | Mapping[str, Any], out: str | os.PathLike, *, progress_bar: bool = False
+) -> RunResult:
     """Train a fresh agent as ``config`` says and write the run folder ``out``.
 
     ``progress_bar`` shows SB3's progress bar (one per stage).
     """
-    if isinstance(config, dict):
-        config = TrainConfig.from_dict(config)
-    config.validate()
-    stages = _stages(config)
-    torch.set_num_threads(1)
-    path = Path(out)
-    if (path / "config.json").exists():
-        raise RLConfigError(f"{str(path)!r} already holds a run (use resume)")
-    model = _make_model(config, _env(config, stages, 0), path)  # bad hyperparameters fail here
-    path.mkdir(parents=True, exist_ok=True)
-    write_json(path / "config.json", config.to_dict())
-    return _run(_RunState(path, config), model, progress_bar)
+    return SB3Run.fresh(config, out, progress_bar=progress_bar)
 
 
-def resume(out: str | os.PathLike, *, progress_bar: bool = False) -> TrainResult:
+def resume(out: str | os.PathLike, *, progress_bar: bool = False) -> RunResult:
     """Continue the run in ``out`` from its latest checkpoint (same config, remaining budget)."""
-    path = Path(out)
-    config_path = path / "config.json"
-    if not config_path.exists():
-        raise RLConfigError(f"{str(path)!r} holds no run (no config.json)")
-    config = TrainConfig.from_dict(json.loads(config_path.read_text()))
-    stages = _stages(config)
-    torch.set_num_threads(1)
-    run = _RunState(path, config)
-    if (run.checkpoints / "model.zip").exists() and (run.checkpoints / "state.json").exists():
-        state = run.load_state()
-        model = algorithm_class(config.algo).load(
-            run.checkpoints / "model.zip",
-            env=_env(config, stages, run.stage),
-            device="cpu",
-            tensorboard_log=_tensorboard_dir(config, path),
-        )
-        model.num_timesteps = int(state["num_timesteps"])
-        run.trim_progress(model.num_timesteps)
-    else:
-        (path / "progress.csv").unlink(missing_ok=True)
-        model = _make_model(config, _env(config, stages, 0), path)
-    return _run(run, model, progress_bar)
+    return SB3Run.resume(out, progress_bar=progress_bar)

@@ -15,26 +15,15 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from amaze.errors import AmazeError
+from amaze.errors import UsageError
 from amaze.maze.signs import register_custom_signs
-
-EXIT_USAGE = 2
-
-
-class UsageError(Exception):
-    """A mistake in the command line: reported as one line, exit status 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        raise UsageError(f"{self.prog}: {message}")
+from amaze.runs.command import CommandParser, run_command
 
 
 def _maze_strings(arguments: Sequence[str]) -> Iterator[str]:
@@ -290,7 +279,7 @@ def _add_agent_options(parser: argparse.ArgumentParser, controller: bool = True)
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``amaze`` and its sub-commands."""
-    parser = _Parser(
+    parser = CommandParser(
         prog="amaze",
         description="Generate, inspect, render and measure AMaze mazes from their strings"
         " (e.g. M4_20x20_C1_l.25_L.25_t.5_T.5).",
@@ -302,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PATH",
         help="register custom sign images: a PNG file or a folder of them (repeatable)",
     )
-    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=CommandParser)
 
     inspect = commands.add_parser("inspect", help="describe mazes (JSON Lines with --json)")
     inspect.add_argument("mazes", nargs="+", metavar="MAZE", help="maze strings; - reads stdin")
@@ -388,28 +377,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``amaze``; returns the exit status (0, or 2 for a user mistake)."""
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
+
+    def body() -> None:
+        args = build_parser().parse_args(argv)
         for path in args.signs:
             register_custom_signs(path)
         with warnings.catch_warnings():
             warnings.simplefilter("always")
             warnings.showwarning = _show_warning
             args.run(args)
-    except BrokenPipeError:
-        # The reader went away (e.g. `amaze inspect ... | head`): stop quietly.
-        sys.stdout = open(os.devnull, "w")
-        return 0
-    except (UsageError, AmazeError, OSError) as error:
-        message = str(error).splitlines()[0] if str(error) else type(error).__name__
-        if isinstance(error, OSError) and error.filename is not None:
-            message = f"{error.strerror}: {error.filename}"
-        print(f"error: {message}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        return 130
-    return 0
+
+    return run_command(body)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

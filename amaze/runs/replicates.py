@@ -21,6 +21,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from amaze.errors import UsageError
+from amaze.validation import check_integer
+
 __all__ = ["Replicate", "plan_replicates", "replicate_command", "run_replicates", "strip_options"]
 
 
@@ -57,8 +60,7 @@ def plan_replicates(
     ``--replicates``, ``--workers``, ``--seed`` and ``--out`` are replaced by each
     replicate's own seed and folder ``out/seed-<s>``; every other option is kept.
     """
-    if count < 1:
-        raise ValueError(f"--replicates {count} is not a positive integer")
+    check_integer("--replicates", count, minimum=1, error=UsageError)
     base = strip_options(argv, ("--replicates", "--workers", "--seed", "--out"))
     plan = []
     for seed in range(first_seed, first_seed + count):
@@ -83,8 +85,7 @@ def run_replicates(plan: Sequence[Replicate], workers: int | None = None) -> int
     """
     if workers is None:
         workers = min(len(plan), os.cpu_count() or 1)
-    if workers < 1:
-        raise ValueError(f"--workers {workers} is not a positive integer")
+    check_integer("--workers", workers, minimum=1, error=UsageError)
     env = _environment(workers)
     waiting = list(plan)
     running: list[tuple[Replicate, subprocess.Popen, TextIO]] = []
@@ -130,10 +131,10 @@ def replicate_command(
 
     Seeds ``first_seed`` (default 0) onwards, each in ``out/seed-<s>``, as
     parallel workers without progress bars (their output goes to log files).
-    Bad values raise ``ValueError``.
+    Bad values raise :class:`~amaze.errors.UsageError`.
     """
     if not out:
-        raise ValueError("--out is required")
+        raise UsageError("--out is required")
     seed = 0 if first_seed is None else first_seed
     plan = plan_replicates(module, [*argv, "--no-progress"], seed, count, out)
     return run_replicates(plan, workers)

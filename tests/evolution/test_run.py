@@ -61,15 +61,15 @@ def test_run_folder(tmp_path: Path, algo: str) -> None:
     assert steps == sorted(steps) and steps[-1] == result.env_steps
     champions = [float(r["champion"]) for r in rows]
     assert champions == sorted(champions)  # the best so far never decreases
-    assert champions[-1] == pytest.approx(result.fitness)
-    assert max(float(r["best"]) for r in rows) == pytest.approx(result.fitness)
+    assert champions[-1] == pytest.approx(result.summary["champion_fitness"])
+    assert max(float(r["best"]) for r in rows) == pytest.approx(result.summary["champion_fitness"])
     summary = json.loads((out / "summary.json").read_text())
     for key in ("success_rate", "normalized_reward", "input_recognition", "env_steps", "seconds"):
         assert key in summary
     assert summary["env_steps"] == result.env_steps and summary["generations"] == 4
     # the champion file is a self-contained agent whose training fitness is recorded
     _, metadata = read_agent(out / "champion.npz")
-    assert metadata["fitness"] == pytest.approx(result.fitness)
+    assert metadata["fitness"] == pytest.approx(result.summary["champion_fitness"])
     assert metadata["mazes"] == SMALL_MAZES and metadata["algorithm"] == algo
     assert load_agent(out / "champion.npz").robot.to_string() == "DD"
 
@@ -84,14 +84,14 @@ def test_step_budget_stops_after_the_generation_that_reaches_it(tmp_path: Path) 
 def test_seconds_budget(tmp_path: Path) -> None:
     config = _config("neat", budget_seconds=0.5, max_generations=None)
     result = evolve(config, tmp_path / "r")
-    assert result.seconds >= 0.5 and result.generations >= 1
+    assert result.seconds >= 0.5 and result.summary["generations"] >= 1
 
 
 def test_same_seed_same_run_and_refusal_to_overwrite(tmp_path: Path) -> None:
     first = evolve(_config("cmaes"), tmp_path / "a")
     second = evolve(_config("cmaes"), tmp_path / "b")
     assert _without_time(_rows(tmp_path / "a")) == _without_time(_rows(tmp_path / "b"))
-    assert first.fitness == second.fitness
+    assert first.summary["champion_fitness"] == second.summary["champion_fitness"]
     with pytest.raises(EvolutionConfigError, match="already holds a run"):
         evolve(_config("cmaes"), tmp_path / "a")
 
@@ -121,9 +121,7 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "Q" in err[0]
     assert main(["--resume", str(tmp_path / "nothing")]) == 2
-    with pytest.raises(SystemExit) as exit_info:
-        main(["--algo", "ga"])
-    assert exit_info.value.code == 2
+    assert main(["--algo", "ga"]) == 2
 
 
 def test_cli_with_a_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -171,7 +169,10 @@ def test_resume_after_a_kill_reaches_the_same_champion(tmp_path: Path, algo: str
     resumed = resume(out)
 
     assert _without_time(_rows(out)) == _without_time(_rows(tmp_path / "whole"))
-    assert resumed.fitness == whole.fitness and resumed.env_steps == whole.env_steps
+    assert (
+        resumed.summary["champion_fitness"] == whole.summary["champion_fitness"]
+        and resumed.env_steps == whole.env_steps
+    )
     a, _ = read_agent(out / "champion.npz")
     b, _ = read_agent(tmp_path / "whole" / "champion.npz")
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)

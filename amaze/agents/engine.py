@@ -3,7 +3,7 @@
 :class:`BatchEngine` runs ``n_agents`` independent episodes of one robot kind
 (discrete, hybrid or continuous) on a list of mazes, possibly of different
 sizes, with the exact step semantics of the reference ``Simulation.step``
-(``AMAZE_REFERENCE.md`` §4.5): collision penalty -0.2 (no move in discrete
+(``docs/reference-behaviour.md`` §4.5): collision penalty -0.2 (no move in discrete
 mode; a clamp, velocity kept, in continuous mode), time step ``-dt``, finish
 bonus ``2l - 1`` when the goal is reached, backward step -0.1 when re-entering
 the cell just left, deadline ``deadline_factor * l / dt`` steps. Observations

@@ -1,6 +1,6 @@
 """Rewards: the per-step reward of the reference code and both normalised scores.
 
-Per-step rewards (``AMAZE_REFERENCE.md`` §4.2, §4.5), with ``l`` the path length
+Per-step rewards (``docs/reference-behaviour.md`` §4.2, §4.5), with ``l`` the path length
 and ``dt`` the time step (1 for discrete actions, 0.1 for continuous ones):
 
 ==========  =========  ==========================================

@@ -3,7 +3,7 @@
 The AMaze paper trains agents in *interpolation* mode: ten stages that go
 "smoothly" from a trivial maze to the final (target) maze, each atomic field
 of the maze string being interpolated by its own rule. The reference's
-``amaze-interpolate`` tool never ran (``AMAZE_REFERENCE.md`` §8.3), so the
+``amaze-interpolate`` tool never ran (``docs/reference-behaviour.md`` §8.3), so the
 rules are defined here afresh. For stage ``i`` of ``n``, with ``u = i / (n - 1)``:
 
 ==================  ==========================================================

@@ -1,7 +1,7 @@
 """The gymnasium environment ``AMaze-v0`` (registered by ``import amaze``).
 
 ``gymnasium.make("AMaze-v0", maze="M4_10x10_C1", robot="DD")`` gives one agent
-in one maze with the reference wrapper's spaces (``AMAZE_REFERENCE.md`` §8.5):
+in one maze with the reference wrapper's spaces (``docs/reference-behaviour.md`` §8.5):
 
 * observations: ``Box(-1, 1, (8,), float32)`` for discrete inputs, or
   ``Box(0, 255, (1, v, v), uint8)`` images (channel first) for hybrid and

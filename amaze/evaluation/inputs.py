@@ -6,7 +6,7 @@ where one wrong turn may spoil everything after it, it shows the agent every
 cell content it could ever perceive, one at a time, and checks the action it
 picks. The inputs are enumerated from the sign types of a maze (its clues,
 lures and traps), exactly as the reference library's ``_all_inputs``
-(``AMAZE_REFERENCE.md`` §7), in its order:
+(``docs/reference-behaviour.md`` §7.1), in its order:
 
 * **dead ends** (three walls): for each open side, arriving from nowhere (the
   start) or through that side, without a sign and with each lure pointing to

@@ -1,4 +1,4 @@
-"""Maze generation, bit-identical to amaze-benchmarker 1.0 (``AMAZE_REFERENCE.md`` §3).
+"""Maze generation, bit-identical to amaze-benchmarker 1.0 (``docs/reference-behaviour.md`` §3).
 
 The reference draws from Python's ``random.Random(seed)`` (MT19937), re-created
 from the same seed before each phase. The phases, in order:

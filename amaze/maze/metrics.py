@@ -1,7 +1,7 @@
 """Maze complexity metrics: surprisingness, deceptiveness, inseparability.
 
 The metrics describe how hard a maze is for an agent that perceives the
-discrete 8-value input of each cell (``AMAZE_REFERENCE.md`` §5.1 and §6):
+discrete 8-value input of each cell (``docs/reference-behaviour.md`` §5.1 and §6):
 
 * 4 wall slots (E, N, W, S), 1 for a wall and 0 for an opening; on a
   trajectory the side the agent came from reads 0.5 instead of 0;
@@ -234,7 +234,7 @@ def surprisingness(maze: Maze, variant: SurprisingnessVariant = "path") -> float
 def deceptiveness(maze: Maze) -> float:
     """The reference's D; equals published numbers; NOT rotation invariant.
 
-    This is exactly what amaze-benchmarker 1.0 computes (``AMAZE_REFERENCE.md``
+    This is exactly what amaze-benchmarker 1.0 computes (``docs/reference-behaviour.md``
     §6), quirks included, so that results can be compared with published ones:
     along the optimal trajectory a state costs 1 when the direction its sign
     slots point to differs from the correct move, where a cell without a sign

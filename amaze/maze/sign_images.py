@@ -2,7 +2,7 @@
 
 Hybrid and continuous agents see a sign as a small gray image inside their
 ``v x v`` cell observation (size ``v - 2``, typically 9 or 13, see
-``AMAZE_REFERENCE.md`` §5.2); the PNG maze renderer draws the same images
+``docs/reference-behaviour.md`` §5.2); the PNG maze renderer draws the same images
 larger. :func:`sign_frames` returns the four orientations of a sign at a given
 size: frame ``d`` (0 = east, 1 = north, 2 = west, 3 = south) is the sign
 pointing in direction ``d``, with row 0 = north (top) and column 0 = west.

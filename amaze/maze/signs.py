@@ -8,7 +8,7 @@ environment variable (paths separated by ``os.pathsep``). Unlike the reference,
 nothing is looked up relative to the current working directory, and importing
 this module reads and writes no file.
 
-Sign specifications follow the reference grammar (``AMAZE_REFERENCE.md`` §2.3):
+Sign specifications follow the reference grammar (``docs/reference-behaviour.md`` §2.3):
 ``1`` (an arrow of lightness 1), ``.5``, ``point`` (lightness 0.5),
 ``point-.25``. They print back in the shortest form that parses to the same
 sign: ``arrow`` is omitted, leading zeros are stripped (``.25``), and unlike the

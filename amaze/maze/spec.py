@@ -2,7 +2,7 @@
 
 A :class:`MazeSpec` holds everything needed to generate a maze (size, seed,
 start corner, signs and their probabilities). It reads and prints the reference
-library's maze strings (``AMAZE_REFERENCE.md`` §2), e.g.
+library's maze strings (``docs/reference-behaviour.md`` §2), e.g.
 ``M4_20x20_C1_l.25_L.25_t.5_T.5``:
 
 ========  ===============================================================
@@ -151,7 +151,7 @@ class MazeSpec:
             if not (math.isfinite(value) and 0.0 <= value <= 1.0):
                 raise MazeStringError(f"{name} {value!r} is not in [0, 1]")
             set_(self, name, float(value))
-        # Couplings of the reference (AMAZE_REFERENCE.md §2.4, steps 5-6).
+        # Couplings of the reference (docs/reference-behaviour.md §2.4).
         if not self.p_lure or not self.lure:
             set_(self, "p_lure", None)
             set_(self, "lure", ())

@@ -1,6 +1,6 @@
 """Run folders: the files every training command writes, written safely.
 
-A run folder (``ARCHITECTURE.md``, "Run folders") holds ``config.json``,
+A run folder (``docs/architecture.md`` §5.4) holds ``config.json``,
 ``progress.csv``, ``checkpoints/``, the champion agent and ``summary.json``.
 Both trainers (``rl_baselines`` and ``evolution``) write them through these
 helpers so that a run killed at any moment leaves readable files behind:

@@ -100,7 +100,7 @@ def test_all_rotations_match_reference(fixture):
     rotations = base.all_rotations()
     assert {r.path_length for r in rotations} == {base.path_length} or not base.spec.rotated
     if base.spec.rotated and (base.width, base.height) != (base.spec.width, base.spec.height):
-        # Reference bug (AMAZE_REFERENCE.md §10.2): it rotates a spec rebuilt
+        # Reference bug (docs/reference-behaviour.md §2.6): it rotates a spec rebuilt
         # from the turned maze, i.e. with width and height swapped. Check the
         # generator on that spec; our all_rotations() keeps the real base.
         swapped = base.spec.where(width=base.spec.height, height=base.spec.width)
@@ -115,7 +115,7 @@ def test_all_rotations_match_reference(fixture):
 
 
 def test_primary_maze_table():
-    """The reference values of AMAZE_REFERENCE.md §3.10."""
+    """The reference values of docs/reference-behaviour.md §3.10."""
     table = {
         "M4_10x10_C1": (29, 2, 2, 0, 0, MazeClass.SIMPLE),
         "M16_5x10_U": (20, 0, 0, 0, 0, MazeClass.TRIVIAL),

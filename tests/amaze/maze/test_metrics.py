@@ -122,7 +122,7 @@ def test_reference_deceptiveness_depends_on_orientation():
 
 
 def test_published_table():
-    """The values of AMAZE_REFERENCE.md §3.10 (rounded to 4 decimals)."""
+    """The values of docs/reference-behaviour.md §3.10 (rounded to 4 decimals)."""
     table = {
         "M4_10x10_C1": (3.2366, 4.5488, 0.0),
         "M16_5x10_U": (3.1219, 3.7469, 0.0),
@@ -250,7 +250,7 @@ def test_import_is_light():
 
 
 def naive_metrics(maze: Maze) -> dict[str, float]:
-    """A direct, per-cell transcription of AMAZE_REFERENCE.md §6 and of the paper's D."""
+    """A direct, per-cell transcription of docs/reference-behaviour.md §6 and of the paper's D."""
     values, directions = maze.cell_signs.value, maze.cell_signs.direction
 
     def inputs(cell):

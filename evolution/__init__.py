@@ -13,6 +13,9 @@
 * :mod:`evolution.population`: population policies played on the batch
   engine (P policies x M episodes stepped together) and their fitness;
 * :mod:`evolution.agent_file`: evolved agents saved as ``.npz`` + JSON, never pickled;
+* :mod:`evolution.algorithms`: the ask / tell interface every search
+  algorithm offers the run loop (:class:`~evolution.algorithms.SearchAlgorithm`)
+  and the registry that builds one by name;
 * :mod:`evolution.cmaes`, :mod:`evolution.run`, :mod:`evolution.cli`: the
   algorithms, run folders with checkpoint/resume, and the ``amaze-evolve`` command.
 """

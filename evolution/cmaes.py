@@ -33,7 +33,7 @@ import math
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import cma
 import numpy as np
@@ -272,7 +272,11 @@ class CMAESAlgorithm:
     fitness, updates the champion and the statistics, and restarts the strategy
     when cma stops and restarts remain. Deterministic given ``seed``; pickling the
     object is a checkpoint that resumes bit-identically (see the module docstring).
+    It satisfies :class:`~evolution.algorithms.SearchAlgorithm`.
     """
+
+    #: The configuration dataclass (:func:`evolution.algorithms.make_algorithm` reads it).
+    config_class: ClassVar[type[CMAESConfig]] = CMAESConfig
 
     def __init__(
         self, config: CMAESConfig | Mapping[str, Any], robot: Robot | str, seed: int

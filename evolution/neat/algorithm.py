@@ -21,7 +21,7 @@ import contextlib
 import math
 import random
 from collections.abc import Iterator, Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from deap import base, tools
@@ -56,8 +56,11 @@ class NeatAlgorithm:
     records the fitness, updates the champion (deap hall of fame) and the
     statistics (deap logbook) and breeds the next generation. Deterministic
     given ``seed``; pickling the object is a checkpoint that resumes
-    bit-identically.
+    bit-identically. It satisfies :class:`~evolution.algorithms.SearchAlgorithm`.
     """
+
+    #: The configuration dataclass (:func:`evolution.algorithms.make_algorithm` reads it).
+    config_class: ClassVar[type[NeatConfig]] = NeatConfig
 
     def __init__(self, config: NeatConfig, robot: Robot | str, seed: int) -> None:
         if isinstance(config, dict):
@@ -119,6 +122,15 @@ class NeatAlgorithm:
     def generation(self) -> int:
         """Generations told so far."""
         return self._generation
+
+    @property
+    def stopped(self) -> bool:
+        """Always False: NEAT has no termination criterion of its own.
+
+        Stagnant species are removed but the best one always survives, so the
+        population never dies out; the run's budget decides when to stop.
+        """
+        return False
 
     @property
     def champion(self) -> tuple[Genome, float] | None:

@@ -10,6 +10,7 @@ settings read, without building a population.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
@@ -156,8 +157,8 @@ class NeatConfig:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> NeatConfig:
-        """A configuration from a dictionary; missing keys take their defaults.
+    def from_dict(cls, data: Mapping[str, Any]) -> NeatConfig:
+        """A configuration from a mapping; missing keys take their defaults.
 
         Unknown keys and bad values raise :class:`EvolutionConfigError` naming them.
         """

@@ -87,3 +87,13 @@ def test_population_plays_mazes_on_the_batch_engine():
         engine = BatchEngine(["M0_5x5_U", "M1_5x5_U"], robot, n_agents=6)
         results = run_episodes(engine, policy)
         assert len(results) == 6 and np.all(results.steps > 0)
+
+
+def test_neat_never_stops_by_itself():
+    config = NeatConfig(population_size=10, stagnation=1)
+    algorithm = NeatAlgorithm(config, "DD", seed=0)
+    assert algorithm.stopped is False
+    for _ in range(4):
+        genomes = algorithm.ask()
+        algorithm.tell(genomes, np.zeros(len(genomes)))  # flat fitness: every species stagnates
+        assert algorithm.stopped is False and len(algorithm.ask()) == 10

@@ -9,31 +9,33 @@ settings read, without building a population.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-import numpy as np
-
 from amaze.runs.folder import config_from_dict
+from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.neat.compile import ACTIVATIONS
 
 __all__ = ["NeatConfig"]
 
 
-_PROBABILITY = (lambda v: 0 <= v <= 1, "a probability in [0, 1]")
-_FRACTION = (lambda v: 0 < v <= 1, "in (0, 1]")
-_NON_NEGATIVE = (lambda v: v >= 0, "non-negative")
-_POSITIVE = (lambda v: v > 0, "positive")
-_RULES = {
-    "population_size": (lambda v: v >= 2, "at least 2"),
-    "stagnation": (lambda v: v >= 1, "at least 1"),
-    "min_species_size": (lambda v: v >= 1, "at least 1"),
-    "tournament_size": (lambda v: v >= 1, "at least 1"),
+#: The bounds of each numeric field, as keyword arguments of
+#: :func:`~amaze.validation.check_integer` (int fields) or
+#: :func:`~amaze.validation.check_number` (float fields); fields not listed
+#: only need to be finite numbers.
+_PROBABILITY: dict[str, Any] = {"minimum": 0, "maximum": 1}
+_FRACTION: dict[str, Any] = {"minimum": 0, "maximum": 1, "strict_minimum": True}
+_NON_NEGATIVE: dict[str, Any] = {"minimum": 0}
+_POSITIVE: dict[str, Any] = {"minimum": 0, "strict_minimum": True}
+_RULES: dict[str, dict[str, Any]] = {
+    "population_size": {"minimum": 2},
+    "stagnation": {"minimum": 1},
+    "min_species_size": {"minimum": 1},
+    "tournament_size": {"minimum": 1},
     "elitism": _NON_NEGATIVE,
-    "target_species": (lambda v: v >= 0, "non-negative (0: a fixed threshold)"),
+    "target_species": _NON_NEGATIVE,  # 0: a fixed threshold
     "compatibility_threshold": _POSITIVE,
     "threshold_step": _POSITIVE,
     "weight_max": _POSITIVE,
@@ -119,38 +121,24 @@ class NeatConfig:
         self.validate()
 
     def validate(self) -> None:
-        """Raise :class:`EvolutionConfigError` naming the first bad value."""
+        """Check and normalise every value; raise :class:`EvolutionConfigError` naming a bad one."""
         for field in fields(self):
-            value = getattr(self, field.name)
+            name, value = field.name, getattr(self, field.name)
+            bounds = _RULES.get(name, {})
             if field.type == "int":
-                if not isinstance(value, int | np.integer) or isinstance(value, bool):
-                    raise EvolutionConfigError(
-                        f"NEAT config '{field.name}' must be an integer, got {value!r}"
-                    )
-                setattr(self, field.name, int(value))
+                value = check_integer(
+                    f"NEAT config '{name}'", value, **bounds, error=EvolutionConfigError
+                )
             elif field.type == "float":
-                if not isinstance(value, int | float | np.number) or isinstance(value, bool):
-                    raise EvolutionConfigError(
-                        f"NEAT config '{field.name}' must be a number, got {value!r}"
-                    )
-                value = float(value)
-                if not math.isfinite(value):
-                    raise EvolutionConfigError(
-                        f"NEAT config '{field.name}' must be finite, got {value!r}"
-                    )
-                setattr(self, field.name, value)
+                value = check_number(
+                    f"NEAT config '{name}'", value, **bounds, error=EvolutionConfigError
+                )
+            setattr(self, name, value)
         if self.activation not in ACTIVATIONS:
             raise EvolutionConfigError(
                 f"NEAT config 'activation' must be one of {', '.join(ACTIVATIONS)}, "
                 f"got {self.activation!r}"
             )
-        for name in fields(self):
-            value = getattr(self, name.name)
-            rule = _RULES.get(name.name)
-            if rule is not None and not rule[0](value):
-                raise EvolutionConfigError(
-                    f"NEAT config '{name.name}' must be {rule[1]}, got {value!r}"
-                )
 
     def to_dict(self) -> dict[str, Any]:
         """The configuration as a JSON-ready dictionary."""

@@ -6,12 +6,16 @@
 * :mod:`evolution.networks`: fixed-topology networks (linear, MLP, a small
   image encoder for hybrid and continuous robots) as flat parameter vectors,
   a whole population evaluated in one batched forward pass;
-* :mod:`evolution.neat`: the NEAT-like genome (node and connection genes with
-  innovation numbers), its operators on ``deap`` and its compilation to a
-  batched feed-forward evaluator;
+* :mod:`evolution.neat`: the NEAT-like GA, a package split by concept: its
+  config, the genome (node and connection genes with innovation numbers), its
+  operators on ``deap``, species, the algorithm, and the compilation of
+  genomes to a batched feed-forward evaluator;
 * :mod:`evolution.population`: population policies played on the batch
   engine (P policies x M episodes stepped together) and their fitness;
 * :mod:`evolution.agent_file`: evolved agents saved as ``.npz`` + JSON, never pickled;
+* :mod:`evolution.algorithms`: the ask / tell interface every search
+  algorithm offers the run loop (:class:`~evolution.algorithms.SearchAlgorithm`)
+  and the registry that builds one by name;
 * :mod:`evolution.cmaes`, :mod:`evolution.run`, :mod:`evolution.cli`: the
   algorithms, run folders with checkpoint/resume, and the ``amaze-evolve`` command.
 """

@@ -4,7 +4,7 @@ An agent file ``<name>.npz`` is a plain numpy archive, read with
 ``np.load(path, allow_pickle=False)``:
 
 * the agent's arrays (``params`` for a fixed network; whatever
-  :mod:`evolution.neat` needs for a NEAT-like genome);
+  :mod:`evolution.neat.compile` needs for a NEAT-like genome);
 * ``metadata``: a 0-d unicode array holding one JSON object with
   ``format`` (``"amaze-evo-agent"``), ``version`` (:data:`FORMAT_VERSION`),
   ``architecture`` (``{"type": "mlp", ...}`` as :meth:`NetworkSpec.to_dict

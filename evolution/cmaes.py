@@ -33,13 +33,14 @@ import math
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import cma
 import numpy as np
 
 from amaze.agents.robot import Robot, as_robot
 from amaze.runs.folder import config_from_dict
+from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkPopulation, NetworkSpec
 
@@ -148,41 +149,33 @@ class CMAESConfig:
     def validate(self) -> None:
         """Check (and normalise) every value; raise :class:`EvolutionConfigError` naming it."""
         self.network = _check_network(self.network)
-        size = self.population_size
-        if size is not None:
-            if isinstance(size, bool) or not isinstance(size, int | np.integer):
-                raise EvolutionConfigError(
-                    f"CMA-ES config 'population_size' must be an integer or null, got {size!r}"
-                )
-            if not 2 <= size <= MAX_POPULATION:
-                raise EvolutionConfigError(
-                    f"CMA-ES config 'population_size' must be in [2, {MAX_POPULATION}],"
-                    f" got {size!r}"
-                )
-            self.population_size = int(size)
-        sigma = self.sigma0
-        if isinstance(sigma, bool) or not isinstance(sigma, int | float | np.number):
-            raise EvolutionConfigError(f"CMA-ES config 'sigma0' must be a number, got {sigma!r}")
-        if not (math.isfinite(sigma) and sigma > 0):
-            raise EvolutionConfigError(
-                f"CMA-ES config 'sigma0' must be positive and finite, got {sigma!r}"
+        if self.population_size is not None:  # None: cma's default
+            self.population_size = check_integer(
+                "CMA-ES config 'population_size'",
+                self.population_size,
+                minimum=2,
+                maximum=MAX_POPULATION,
+                error=EvolutionConfigError,
             )
-        self.sigma0 = float(sigma)
+        self.sigma0 = check_number(
+            "CMA-ES config 'sigma0'",
+            self.sigma0,
+            minimum=0,
+            strict_minimum=True,
+            error=EvolutionConfigError,
+        )
         if not isinstance(self.separable, bool | np.bool_):
             raise EvolutionConfigError(
                 f"CMA-ES config 'separable' must be true or false, got {self.separable!r}"
             )
         self.separable = bool(self.separable)
-        restarts = self.restarts
-        if isinstance(restarts, bool) or not isinstance(restarts, int | np.integer):
-            raise EvolutionConfigError(
-                f"CMA-ES config 'restarts' must be an integer, got {restarts!r}"
-            )
-        if not 0 <= restarts <= MAX_RESTARTS:
-            raise EvolutionConfigError(
-                f"CMA-ES config 'restarts' must be in [0, {MAX_RESTARTS}], got {restarts!r}"
-            )
-        self.restarts = int(restarts)
+        self.restarts = check_integer(
+            "CMA-ES config 'restarts'",
+            self.restarts,
+            minimum=0,
+            maximum=MAX_RESTARTS,
+            error=EvolutionConfigError,
+        )
         self.cma_options = _check_cma_options(self.cma_options)
 
     def to_dict(self) -> dict[str, Any]:
@@ -230,17 +223,11 @@ def _check_network(network: Any) -> dict[str, Any]:
         spec = NetworkSpec("DD", tuple(hidden) if isinstance(hidden, list) else hidden, activation)
     except EvolutionConfigError as error:
         raise EvolutionConfigError(f"CMA-ES config 'network': {error}") from None
-    if pool is not None and (
-        isinstance(pool, bool) or not isinstance(pool, int | np.integer) or pool < 1
-    ):
-        raise EvolutionConfigError(
-            f"CMA-ES config 'network': pool {pool!r} must be a positive integer or null"
+    if pool is not None:  # None: the default pooling of image robots
+        pool = check_integer(
+            "CMA-ES config 'network': pool", pool, minimum=1, error=EvolutionConfigError
         )
-    return {
-        "hidden": list(spec.hidden),
-        "activation": spec.activation,
-        "pool": None if pool is None else int(pool),
-    }
+    return {"hidden": list(spec.hidden), "activation": spec.activation, "pool": pool}
 
 
 def _check_cma_options(options: Any) -> dict[str, Any]:
@@ -272,7 +259,11 @@ class CMAESAlgorithm:
     fitness, updates the champion and the statistics, and restarts the strategy
     when cma stops and restarts remain. Deterministic given ``seed``; pickling the
     object is a checkpoint that resumes bit-identically (see the module docstring).
+    It satisfies :class:`~evolution.algorithms.SearchAlgorithm`.
     """
+
+    #: The configuration dataclass (:func:`evolution.algorithms.make_algorithm` reads it).
+    config_class: ClassVar[type[CMAESConfig]] = CMAESConfig
 
     def __init__(
         self, config: CMAESConfig | Mapping[str, Any], robot: Robot | str, seed: int
@@ -282,11 +273,9 @@ class CMAESAlgorithm:
         if not isinstance(config, CMAESConfig):
             raise EvolutionConfigError(f"expected a CMAESConfig, got {type(config).__name__}")
         config.validate()
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
-            raise EvolutionConfigError(f"seed {seed!r} is not an integer")
+        self.seed = check_integer("seed", seed, error=EvolutionConfigError)
         self.config = config
         self.robot = as_robot(robot)
-        self.seed = int(seed)
         network = config.network
         self.spec = NetworkSpec(
             robot=self.robot.to_string(),

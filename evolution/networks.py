@@ -62,6 +62,7 @@ import numpy as np
 
 from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, RobotStringError, as_robot
+from amaze.validation import check_integer
 from evolution import EvolutionConfigError
 
 __all__ = [
@@ -98,14 +99,6 @@ _PARALLEL_MIN_WORK = 1 << 18
 # Specification
 
 
-def _check_int(name: str, value: Any, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise EvolutionConfigError(f"{name} {value!r} is not an integer")
-    if not low <= value <= high:
-        raise EvolutionConfigError(f"{name} {value!r} must be in [{low}, {high}]")
-    return int(value)
-
-
 @dataclass(frozen=True)
 class NetworkSpec:
     """A fixed-topology network for one robot (see the module docstring).
@@ -133,9 +126,13 @@ class NetworkSpec:
             hidden = (hidden,)
         if isinstance(hidden, str) or not isinstance(hidden, Sequence):
             raise EvolutionConfigError(f"hidden {hidden!r} must be a list of layer widths")
-        object.__setattr__(
-            self, "hidden", tuple(_check_int("hidden layer width", h, 1, MAX_WIDTH) for h in hidden)
+        widths = tuple(
+            check_integer(
+                "hidden layer width", h, minimum=1, maximum=MAX_WIDTH, error=EvolutionConfigError
+            )
+            for h in hidden
         )
+        object.__setattr__(self, "hidden", widths)
         if self.activation not in ACTIVATIONS:
             raise EvolutionConfigError(
                 f"activation {self.activation!r} is not one of {', '.join(ACTIVATIONS)}"
@@ -147,7 +144,10 @@ class NetworkSpec:
                 )
         else:
             pool = DEFAULT_POOL if self.pool is None else self.pool
-            object.__setattr__(self, "pool", _check_int("pool", pool, 1, int(robot.vision)))
+            pool = check_integer(
+                "pool", pool, minimum=1, maximum=int(robot.vision), error=EvolutionConfigError
+            )
+            object.__setattr__(self, "pool", pool)
 
     # -- description ----------------------------------------------------------
 
@@ -227,7 +227,9 @@ class NetworkSpec:
 
         One vector ``(n_params,)``, or ``(n, n_params)`` when ``n`` is given.
         """
-        count = 1 if n is None else _check_int("n", n, 1, 1 << 30)
+        count = 1
+        if n is not None:
+            count = check_integer("n", n, minimum=1, maximum=1 << 30, error=EvolutionConfigError)
         params = np.zeros((count, self.n_params), dtype=np.float64)
         offset = 0
         for d_in, d_out in self.layer_shapes:

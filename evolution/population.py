@@ -42,6 +42,7 @@ from amaze.evaluation.policy import EpisodeResults, run_episodes
 from amaze.evaluation.suite import rotations
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 from evolution import EvolutionConfigError
 
 __all__ = [
@@ -229,21 +230,19 @@ class PopulationEvaluator:
 
     def evaluate(self, policy: PopulationPolicy | Any) -> PopulationResult:
         """Play every individual of ``policy`` once in each maze and score it."""
-        n_policies = getattr(policy, "n_policies", 1)
-        if isinstance(n_policies, bool) or not isinstance(n_policies, int | np.integer):
-            raise EvolutionConfigError(f"n_policies {n_policies!r} is not an integer")
-        if n_policies < 1:
-            raise EvolutionConfigError(f"n_policies {n_policies} must be positive")
+        n_policies = check_integer(
+            "n_policies", getattr(policy, "n_policies", 1), minimum=1, error=EvolutionConfigError
+        )
         robot = getattr(policy, "robot", None)
         if robot is not None and as_robot(robot) != self.robot:
             raise EvolutionConfigError(
                 f"the population drives {as_robot(robot)} robots, the evaluator {self.robot}"
             )
-        engine = self.engine(int(n_policies))
+        engine = self.engine(n_policies)
         started = time.perf_counter()
         episodes = run_episodes(engine, policy)
         seconds = time.perf_counter() - started
-        shape = (int(n_policies), self.n_episodes)
+        shape = (n_policies, self.n_episodes)
         success = episodes.success.reshape(shape).mean(axis=1)
         paper = episodes.paper_reward.reshape(shape).mean(axis=1)
         pretty = episodes.pretty_reward.reshape(shape).mean(axis=1)

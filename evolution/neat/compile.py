@@ -1,6 +1,6 @@
 """NEAT genomes compiled to a batched feed-forward evaluator (numba).
 
-A genome (node and connection genes, see :mod:`evolution.neat`) compiles to a
+A genome (node and connection genes, see :mod:`evolution.neat.genome`) compiles to a
 few flat arrays (:func:`genome_to_arrays`): the nodes that influence an output,
 in topological order, each with its bias, its activation code and its incoming
 enabled connections as a CSR list of (source, weight). Disabled connections

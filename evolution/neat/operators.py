@@ -1,0 +1,241 @@
+"""The NEAT operators on genomes: mutations, crossover and the compatibility distance.
+
+* **mutations**: weights (perturbed, or with a small probability replaced),
+  biases, add-connection (feed-forward only: the whole connection graph,
+  disabled genes included, stays acyclic, so that re-enabling a gene is always
+  safe), add-node (a connection is split: disabled, ``in -> new`` with weight 1,
+  ``new -> out`` with the old weight), toggle enable, optionally activation;
+* **crossover** aligns genes by innovation number: matching genes come from
+  either parent at random (disabled with a probability if disabled in either),
+  disjoint and excess genes from the fitter parent;
+* the **compatibility distance** ``c1 E / N + c2 D / N + c3 W̄`` between two
+  genomes, on which speciation (:mod:`evolution.neat.species`) rests.
+
+The operators follow ``deap``'s conventions (:func:`mutate` works in place and
+returns a 1-tuple; they are registered in the algorithm's toolbox) and draw
+from Python's global ``random``, into which the algorithm swaps its own state.
+"""
+
+from __future__ import annotations
+
+import random
+
+from evolution.neat.compile import ACTIVATIONS
+from evolution.neat.config import NeatConfig
+from evolution.neat.genome import ConnectionGene, Genome, InnovationTracker, NodeGene
+
+__all__ = [
+    "SMALL_GENOME",
+    "compatibility_distance",
+    "crossover",
+    "mutate",
+    "mutate_activation",
+    "mutate_add_connection",
+    "mutate_add_node",
+    "mutate_biases",
+    "mutate_toggle_enable",
+    "mutate_weights",
+]
+
+#: Below this many connection genes, the compatibility distance is not
+#: normalised by genome size (N = 1), as in the NEAT paper.
+SMALL_GENOME = 20
+
+
+# -----------------------------------------------------------------------------
+# Mutations (all draw from ``random``)
+
+
+def _clip(value: float, bound: float) -> float:
+    return max(-bound, min(bound, value))
+
+
+def mutate_weights(genome: Genome, config: NeatConfig) -> None:
+    """Perturb every connection weight (Gaussian), or replace it with ``weight_replace_rate``."""
+    for innovation in sorted(genome.connections):
+        gene = genome.connections[innovation]
+        if random.random() < config.weight_replace_rate:
+            gene.weight = random.gauss(0.0, config.weight_init_stdev)
+        else:
+            gene.weight += random.gauss(0.0, config.weight_mutate_power)
+        gene.weight = _clip(gene.weight, config.weight_max)
+
+
+def mutate_biases(genome: Genome, config: NeatConfig) -> None:
+    """Perturb every output and hidden bias, or replace it with ``bias_replace_rate``."""
+    for node_id in sorted(genome.nodes):
+        node = genome.nodes[node_id]
+        if node.kind == "input":
+            continue
+        if random.random() < config.bias_replace_rate:
+            node.bias = random.gauss(0.0, config.bias_init_stdev)
+        else:
+            node.bias += random.gauss(0.0, config.bias_mutate_power)
+        node.bias = _clip(node.bias, config.weight_max)
+
+
+def mutate_add_node(genome: Genome, tracker: InnovationTracker, config: NeatConfig) -> bool:
+    """Split a random enabled connection ``a -> b`` with a new hidden node ``h``.
+
+    The old gene is disabled; ``a -> h`` gets weight 1 and ``h -> b`` the old
+    weight, so that the network computes nearly what it did (exactly with a
+    linear ``h``). Returns whether a node was added.
+    """
+    enabled = [i for i in sorted(genome.connections) if genome.connections[i].enabled]
+    if not enabled:
+        return False
+    old = genome.connections[random.choice(enabled)]
+    old.enabled = False
+    node = tracker.split_node(old.innovation, genome)
+    genome.nodes[node] = NodeGene(node, "hidden", 0.0, config.activation)
+    first = tracker.connection(old.in_node, node)
+    second = tracker.connection(node, old.out_node)
+    genome.connections[first] = ConnectionGene(first, old.in_node, node, 1.0)
+    genome.connections[second] = ConnectionGene(second, node, old.out_node, old.weight)
+    return True
+
+
+def _descendants(genome: Genome, node: int) -> set[int]:
+    """``node`` and every node reachable from it through any connection gene."""
+    children: dict[int, list[int]] = {}
+    for gene in genome.connections.values():
+        children.setdefault(gene.in_node, []).append(gene.out_node)
+    seen = {node}
+    stack = [node]
+    while stack:
+        for child in children.get(stack.pop(), ()):
+            if child not in seen:
+                seen.add(child)
+                stack.append(child)
+    return seen
+
+
+def mutate_add_connection(genome: Genome, tracker: InnovationTracker, config: NeatConfig) -> bool:
+    """Add a connection between two unconnected nodes without creating a cycle.
+
+    Sources are inputs and hidden nodes, targets hidden nodes and outputs; a
+    source may not be reachable from its target through any gene (enabled or
+    not). Returns whether a connection was added (False when the genome is
+    fully connected).
+    """
+    targets = sorted(i for i, n in genome.nodes.items() if n.kind != "input")
+    random.shuffle(targets)
+    for target in targets:
+        forbidden = _descendants(genome, target)
+        forbidden.update(g.in_node for g in genome.connections.values() if g.out_node == target)
+        sources = [
+            i
+            for i in sorted(genome.nodes)
+            if genome.nodes[i].kind != "output" and i not in forbidden
+        ]
+        if sources:
+            source = random.choice(sources)
+            innovation = tracker.connection(source, target)
+            weight = random.gauss(0.0, config.weight_init_stdev)
+            genome.connections[innovation] = ConnectionGene(innovation, source, target, weight)
+            return True
+    return False
+
+
+def mutate_toggle_enable(genome: Genome) -> bool:
+    """Flip the enabled flag of a random connection (always safe: the gene graph is acyclic)."""
+    if not genome.connections:
+        return False
+    gene = genome.connections[random.choice(sorted(genome.connections))]
+    gene.enabled = not gene.enabled
+    return True
+
+
+def mutate_activation(genome: Genome) -> bool:
+    """Give a random hidden node a random activation."""
+    hidden = sorted(i for i, n in genome.nodes.items() if n.kind == "hidden")
+    if not hidden:
+        return False
+    genome.nodes[random.choice(hidden)].activation = random.choice(ACTIVATIONS)
+    return True
+
+
+def mutate(genome: Genome, config: NeatConfig, tracker: InnovationTracker) -> tuple[Genome]:
+    """Apply NEAT's mutations with their rates, in place (deap's convention: a 1-tuple).
+
+    The fitness is invalidated.
+    """
+    if random.random() < config.add_node_rate:
+        mutate_add_node(genome, tracker, config)
+    if random.random() < config.add_connection_rate:
+        mutate_add_connection(genome, tracker, config)
+    if random.random() < config.weight_mutate_rate:
+        mutate_weights(genome, config)
+    if random.random() < config.bias_mutate_rate:
+        mutate_biases(genome, config)
+    if random.random() < config.toggle_enable_rate:
+        mutate_toggle_enable(genome)
+    if random.random() < config.activation_mutate_rate:
+        mutate_activation(genome)
+    del genome.fitness.values
+    return (genome,)
+
+
+def crossover(first: Genome, second: Genome, config: NeatConfig) -> Genome:
+    """A child of two genomes aligned by innovation number.
+
+    Matching genes (same innovation in both) come from either parent at
+    random, and are disabled with ``disable_inherit_rate`` if disabled in
+    either; disjoint and excess genes come from the fitter parent (``first``
+    on a tie), so the child has the fitter parent's structure. Unlike deap's
+    in-place ``mate`` operators it returns one new genome (invalid fitness).
+    """
+    fitter, other = (first, second) if not second.fitness > first.fitness else (second, first)
+    child = Genome(fitter.n_inputs, fitter.n_outputs)
+    for node_id in sorted(fitter.nodes):
+        node = fitter.nodes[node_id]
+        match = other.nodes.get(node_id)
+        if node.kind != "input" and match is not None and random.random() < 0.5:
+            node = match
+        child.nodes[node_id] = NodeGene(node_id, node.kind, node.bias, node.activation)
+    for innovation in sorted(fitter.connections):
+        gene = fitter.connections[innovation]
+        match = other.connections.get(innovation)
+        enabled = gene.enabled
+        if match is not None:
+            if random.random() < 0.5:
+                gene = match
+            enabled = True
+            if not (fitter.connections[innovation].enabled and match.enabled):
+                enabled = random.random() >= config.disable_inherit_rate
+        child.connections[innovation] = ConnectionGene(
+            innovation, gene.in_node, gene.out_node, gene.weight, enabled
+        )
+    return child
+
+
+# -----------------------------------------------------------------------------
+# Distance
+
+
+def compatibility_distance(a: Genome, b: Genome, config: NeatConfig) -> float:
+    """NEAT's compatibility distance ``c1 E / N + c2 D / N + c3 W̄``.
+
+    ``E`` counts excess genes (innovations beyond the other genome's last),
+    ``D`` disjoint ones, ``W̄`` is the mean weight difference of matching genes
+    and ``N`` the larger genome's number of connection genes (1 below
+    :data:`SMALL_GENOME`).
+    """
+    ka, kb = a.connections, b.connections
+    if not ka and not kb:
+        return 0.0
+    matching = ka.keys() & kb.keys()
+    unmatched = ka.keys() ^ kb.keys()
+    last = min(max(ka, default=-1), max(kb, default=-1))
+    excess = sum(1 for i in unmatched if i > last)
+    disjoint = len(unmatched) - excess
+    weight = (
+        sum(abs(ka[i].weight - kb[i].weight) for i in matching) / len(matching) if matching else 0.0
+    )
+    size = max(len(ka), len(kb))
+    n = 1.0 if size < SMALL_GENOME else float(size)
+    return (
+        config.compatibility_excess * excess / n
+        + config.compatibility_disjoint * disjoint / n
+        + config.compatibility_weight * weight
+    )

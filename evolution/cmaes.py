@@ -39,7 +39,7 @@ import cma
 import numpy as np
 
 from amaze.agents.robot import Robot, as_robot
-from amaze.runs.folder import config_from_dict
+from amaze.runs.config import config_from_dict
 from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkPopulation, NetworkSpec

@@ -79,11 +79,11 @@ from amaze.runs.lifecycle import Run, RunResult
 from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
+from evolution.algorithms import ALGORITHMS, SearchAlgorithm, algorithm_class, make_algorithm
 from evolution.population import FITNESS, EvaluationBackend, PopulationEvaluator
 
-__all__ = ["ALGORITHMS", "EvolutionRun", "EvolveConfig", "evolve", "resume"]
+__all__ = ["EvolutionRun", "EvolveConfig", "evolve", "resume"]
 
-ALGORITHMS = ("cmaes", "neat")
 PROGRESS_FIELDS = ("generation", "steps", "seconds", "best", "mean", "champion", "eval_seconds")
 #: Version of the checkpoint layout; a checkpoint of another version is refused.
 CHECKPOINT_VERSION = 1
@@ -100,7 +100,7 @@ class EvolveConfig(RunConfig):
     error = EvolutionConfigError
     options_field = "algorithm"
 
-    algo: str = option("cmaes", "search algorithm", choices=ALGORITHMS)
+    algo: str = option("cmaes", "search algorithm", choices=tuple(ALGORITHMS))
     mazes: list[str] = option(
         default_factory=lambda: [PAPER_TRAINING_MAZE],
         help="training mazes, each played in its 4 rotations (default: the paper's)",
@@ -123,10 +123,7 @@ class EvolveConfig(RunConfig):
     def validate(self) -> EvolveConfig:
         """Check every field; raise :class:`EvolutionConfigError` naming the bad value."""
         super().validate()
-        if self.algo not in ALGORITHMS:
-            raise EvolutionConfigError(
-                f"unknown algorithm {self.algo!r} (choose from {', '.join(ALGORITHMS)})"
-            )
+        algorithm_class(self.algo)  # an unknown name is refused, naming the choices
         if isinstance(self.mazes, str):
             self.mazes = [m for m in self.mazes.split(",") if m]
         if not isinstance(self.mazes, list) or not self.mazes:
@@ -177,22 +174,11 @@ class EvolveConfig(RunConfig):
         return data
 
 
-def make_algorithm(config: EvolveConfig) -> Any:
-    """A fresh algorithm object as ``config`` says (options checked by the algorithm)."""
-    if config.algo == "cmaes":
-        from evolution.cmaes import CMAESAlgorithm, CMAESConfig
-
-        return CMAESAlgorithm(CMAESConfig.from_dict(config.algorithm), config.robot, config.seed)
-    from evolution.neat import NeatAlgorithm, NeatConfig
-
-    return NeatAlgorithm(NeatConfig.from_dict(config.algorithm), config.robot, config.seed)
-
-
 @dataclass
 class _State:
     """The run state saved in every checkpoint."""
 
-    algorithm: Any
+    algorithm: SearchAlgorithm
     generation: int = 0
     steps: int = 0
     seconds: float = 0.0
@@ -212,7 +198,7 @@ class EvolutionRun(Run):
     def __init__(self, out: str | os.PathLike, config: EvolveConfig) -> None:
         super().__init__(out, config)
         self.checkpoint = self.checkpoints / "state.pkl"
-        self.state = _State(algorithm=None)
+        self.state: _State  # set by start() or restore()
         self.champion_fitness = -np.inf
 
     @cached_property
@@ -224,7 +210,10 @@ class EvolutionRun(Run):
     # -- the lifecycle's hooks --------------------------------------------------
 
     def start(self) -> None:
-        self.state = _State(make_algorithm(self.config))  # bad algorithm options fail here
+        c = self.config
+        self.state = _State(
+            make_algorithm(c.algo, c.algorithm, c.robot, c.seed)
+        )  # bad options fail here
         self.backend  # noqa: B018 (and bad mazes here, before anything is written)
 
     def restore(self) -> int | None:

@@ -8,8 +8,6 @@ helpers so that a run killed at any moment leaves readable files behind:
 * :func:`write_json` and :func:`write_bytes` write a temporary file and rename
   it over the old one (atomic on POSIX): a reader sees the old or the new file,
   never half of one;
-* :func:`config_from_dict` reads a run's config (a dataclass) from JSON,
-  refusing unknown keys;
 * :class:`ProgressLog` appends one CSV row per evaluation or generation and,
   on resume, drops the rows written after the checkpoint being resumed, so the
   log of a resumed run reads as that of an uninterrupted one.
@@ -25,27 +23,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["ProgressLog", "config_from_dict", "write_bytes", "write_json"]
-
-_Config = TypeVar("_Config")
-
-
-def config_from_dict(
-    cls: type[_Config], data: Any, error: type[ValueError], what: str = "config"
-) -> _Config:
-    """An instance of the config dataclass ``cls`` from a JSON object.
-
-    Missing keys take their defaults; a value that is not a mapping, or any
-    unknown key, raises ``error`` naming it (the fields' own checks are the
-    dataclass's business).
-    """
-    if not isinstance(data, Mapping):
-        raise error(f"a {what} must be a JSON object, not {data!r}")
-    unknown = sorted(set(data) - {f.name for f in fields(cls)})  # type: ignore[arg-type]
-    if unknown:
-        raise error(f"unknown {what} key(s): {', '.join(repr(k) for k in unknown)}")
-    return cls(**dict(data))
-
+__all__ = ["ProgressLog", "write_bytes", "write_json"]
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file in the same folder, then rename)."""

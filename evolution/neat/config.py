@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from amaze.runs.folder import config_from_dict
+from amaze.runs.config import config_from_dict
 from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.neat.compile import ACTIVATIONS

@@ -23,8 +23,9 @@ the layers below it, and ``make test`` checks that:
 * :mod:`amaze.runs`: run folders and the training-command skeleton;
 * :mod:`amaze.cli`: the ``amaze`` command.
 
-The names most used are importable from ``amaze`` itself; those that pull in
-numba or matplotlib (``BatchEngine``, ``evaluate``...) are loaded on first use.
+The names most used are importable from ``amaze`` itself; the heavier modules
+behind some of them (the batch engine, the evaluation protocol, the metrics)
+are loaded on first use.
 """
 
 from importlib import import_module

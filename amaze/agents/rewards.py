@@ -9,7 +9,7 @@ event       reward     note
 time step   ``-dt``    every step
 collision   ``-0.2``   bumping into a wall (once per step)
 backward    ``-0.1``   re-entering the cell just left
-finish      ``2l-1``   on the step that ends the episode (goal or deadline)
+finish      ``2l-1``   on the step that reaches the goal (not at the deadline)
 ==========  =========  ==========================================
 
 An optimal discrete run earns ``R = l``. (The paper's Table 2 swaps the

@@ -63,8 +63,9 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.agents.robot import as_robot
+from amaze.curriculum.regimes import REGIMES, regime_stages, stage_end
 from amaze.evaluation.protocol import Evaluator
-from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
+from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
 from amaze.maze import rotations
 from amaze.runs.config import RunConfig, option
 from amaze.runs.folder import write_json
@@ -75,9 +76,8 @@ from rl_baselines.agent import SB3Agent, algorithm_class
 from rl_baselines.networks import small_cnn_kwargs
 from rl_baselines.vec_env import MazeVecEnv
 
-__all__ = ["REGIMES", "SB3Run", "TrainConfig", "resume", "stage_end", "train"]
+__all__ = ["SB3Run", "TrainConfig", "resume", "train"]
 
-REGIMES = ("direct", "interpolation")
 PROGRESS_FIELDS = ("steps", "seconds", "eval_success", "eval_rbar", "stage")
 #: R̄ at or above this counts as optimal (R̄ is 1 for a run in l-1 steps).
 OPTIMAL = 1.0 - 1e-9
@@ -124,27 +124,6 @@ class TrainConfig(RunConfig):
             if reserved in self.hyperparameters:
                 raise RLConfigError(f"hyperparameter {reserved!r} is set by the trainer")
         return self
-
-
-def stage_end(budget: int, used: int, stages_left: int) -> int:
-    """Where the current stage stops: an equal share of what is left (all of it at the end).
-
-    Steps that earlier stages did not use (they converged early) are shared among
-    the stages still to come.
-    """
-    if stages_left <= 1:
-        return budget
-    return used + max(budget - used, 0) // stages_left
-
-
-def _stages(config: TrainConfig) -> list[tuple[list[str], list[str]]]:
-    """(training mazes, evaluation mazes) of every stage of the regime."""
-    if config.regime == "direct":
-        return [(rotations(PAPER_TRAINING_MAZE), rotations(PAPER_EVALUATION_MAZE))]
-    from amaze.curriculum.interpolation import curriculum
-
-    stages = [rotations(spec) for spec in curriculum(PAPER_TRAINING_MAZE)]
-    return [(mazes, mazes) for mazes in stages]
 
 
 class _EvaluationCallback(BaseCallback):
@@ -208,7 +187,7 @@ class SB3Run(Run):
     def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
         super().__init__(out, config)
         torch.set_num_threads(1)
-        self.stages = _stages(config)
+        self.stages = regime_stages(config.regime)
         self.model: BaseAlgorithm | None = None
         self.seconds_before = 0.0
         self.best: tuple[float, float] | None = None
@@ -225,7 +204,7 @@ class SB3Run(Run):
     def _env(self, stage: int) -> MazeVecEnv:
         """The training environments of ``stage`` (one rotation per environment)."""
         c = self.config
-        return MazeVecEnv(self.stages[stage][0], c.robot, c.n_envs, c.seed)
+        return MazeVecEnv(list(self.stages[stage].training), c.robot, c.n_envs, c.seed)
 
     def _tensorboard_dir(self) -> str | None:
         return str(self.out / "tensorboard") if self.config.tensorboard else None
@@ -281,7 +260,7 @@ class SB3Run(Run):
             if self.stage_end is None:
                 stages_left = len(self.stages) - self.stage
                 self.stage_end = stage_end(config.budget_steps, used, stages_left)
-            eval_mazes = self.stages[self.stage][1]
+            eval_mazes = list(self.stages[self.stage].evaluation)
             callback.evaluator = Evaluator(config.robot, mazes=eval_mazes, inputs=False)
             remaining = self.stage_end - used
             if remaining > 0 and not self.converged:

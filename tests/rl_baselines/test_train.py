@@ -14,7 +14,7 @@ import pytest
 import rl_baselines.train as train_module
 from rl_baselines import RLConfigError
 from rl_baselines.cli import main
-from rl_baselines.train import TrainConfig, stage_end, train
+from rl_baselines.train import TrainConfig, train
 
 SUMMARY_KEYS = {"success_rate", "normalized_reward", "input_recognition", "env_steps", "seconds"}
 
@@ -123,13 +123,6 @@ def test_ppo_end_to_end(tmp_path: Path) -> None:
 def _write(path: Path, data: dict) -> str:
     path.write_text(json.dumps(data))
     return str(path)
-
-
-def test_stage_shares_hand_unused_budget_on() -> None:
-    assert stage_end(1000, 0, 10) == 100
-    # stage 1 converged after 20 steps: the 9 stages left share the other 980
-    assert stage_end(1000, 20, 9) == 20 + 980 // 9
-    assert stage_end(1000, 950, 1) == 1000
 
 
 def test_early_stop_when_every_evaluation_episode_is_optimal(

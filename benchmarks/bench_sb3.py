@@ -27,7 +27,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 import amaze  # noqa: F401  (registers AMaze-v0)
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
-from rl_baselines.train import rotations
+from amaze.maze import rotations
 from rl_baselines.vec_env import MazeVecEnv
 
 

@@ -57,7 +57,8 @@ from amaze.agents.rewards import (
 from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
 from amaze.agents.tables import MazeTables, compile_mazes
 from amaze.errors import EpisodeEndedError
-from amaze.maze.maze import Maze
+from amaze.maze.maze import Maze, as_maze
+from amaze.maze.spec import MazeSpec
 
 __all__ = ["BatchEngine", "EpisodeEndedError", "EpisodeStatistics", "StepResult"]
 
@@ -782,6 +783,7 @@ def _build(cls: type[_Dataclass], **fields: object) -> _Dataclass:
 class BatchEngine:
     """``n_agents`` agents of one robot kind in a list of mazes, stepped together.
 
+    ``mazes`` may be mazes, specs or maze strings (generated once, here).
     Agent ``k`` runs in maze ``assignment[k]`` (default ``k % len(mazes)``).
     Discrete and hybrid robots take actions ``0..3`` (E, N, W, S), int (n,);
     continuous robots take accelerations, float (n, 2), not clipped (as in the
@@ -796,7 +798,7 @@ class BatchEngine:
 
     def __init__(
         self,
-        mazes: Sequence[Maze | str],
+        mazes: Sequence[Maze | MazeSpec | str],
         robot: Robot | str,
         n_agents: int,
         *,
@@ -808,7 +810,7 @@ class BatchEngine:
         if n_agents < 1:
             raise ValueError(f"n_agents must be positive, got {n_agents}")
         self.robot = as_robot(robot)
-        self.mazes = [m if isinstance(m, Maze) else Maze.from_string(m) for m in mazes]
+        self.mazes = [as_maze(m) for m in mazes]
         self.tables: MazeTables = compile_mazes(self.mazes, self.robot, deadline_factor)
         self.n_agents = int(n_agents)
         self.deadline_factor = float(deadline_factor)

@@ -5,7 +5,8 @@
 * :mod:`~amaze.evaluation.controllers`: random, oracle and tabular controllers;
 * :mod:`~amaze.evaluation.inputs`: the input-recognition test (its picture in
   :mod:`~amaze.evaluation.inputs_picture`);
-* :mod:`~amaze.evaluation.suite`: the standard evaluation suite and maze rotations;
+* :mod:`~amaze.evaluation.suite`: the standard evaluation suite (each maze in its
+  rotations, :func:`amaze.maze.rotations`);
 * :mod:`~amaze.evaluation.protocol`: :func:`evaluate` / :class:`Evaluator`, the one
   protocol every agent goes through.
 """
@@ -16,7 +17,6 @@ from amaze.evaluation.suite import (
     PAPER_EVALUATION_MAZE,
     PAPER_TRAINING_MAZE,
     EvaluationSuite,
-    rotations,
     standard_suite,
 )
 
@@ -31,7 +31,6 @@ __all__ = [
     "Policy",
     "evaluate",
     "record_episode",
-    "rotations",
     "run_episodes",
     "standard_suite",
 ]

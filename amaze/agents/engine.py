@@ -60,7 +60,7 @@ from amaze.errors import EpisodeEndedError
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.spec import MazeSpec
 
-__all__ = ["BatchEngine", "EpisodeEndedError", "EpisodeStatistics", "StepResult"]
+__all__ = ["BatchEngine", "EndedEpisodes", "EpisodeEndedError", "StepResult"]
 
 _Dataclass = TypeVar("_Dataclass")
 
@@ -673,8 +673,15 @@ def _observe_all_continuous(ist, fst, mint, canvas, canvas_off, out):
 
 
 @dataclass(frozen=True)
-class EpisodeStatistics:
-    """Statistics of the episodes that ended in one step, aligned with ``agents``.
+class EndedEpisodes:
+    """The episodes that ended in one :meth:`BatchEngine.step`, aligned with ``agents``.
+
+    Only the agents whose episode ended in that step appear (often none), in
+    the order of ``agents``; a whole run's scored episodes, one per agent, are
+    gathered from successive steps into
+    :class:`~amaze.evaluation.policy.EpisodeResults`, and the episode in
+    progress of a :class:`~amaze.agents.simulation.Simulation` is counted by
+    :class:`~amaze.agents.simulation.EpisodeCounters`.
 
     ``cumulative_reward`` is the reference's raw return ``R``; ``steps``,
     ``collisions``, ``backsteps`` its counters; ``success`` whether the goal was
@@ -732,7 +739,7 @@ class StepResult:
     ``rewards`` float64 (n,); ``terminated`` (goal reached) and ``truncated``
     (deadline) bool (n,); ``final_observations`` (len(episodes), ...): the last
     observation of each episode that ended, aligned with ``episodes.agents``;
-    ``episodes``: their statistics.
+    ``episodes``: those episodes (:class:`EndedEpisodes`).
     """
 
     observations: np.ndarray
@@ -740,7 +747,7 @@ class StepResult:
     terminated: np.ndarray
     truncated: np.ndarray
     final_observations: np.ndarray
-    episodes: EpisodeStatistics
+    episodes: EndedEpisodes
 
     @property
     def done(self) -> np.ndarray:
@@ -994,7 +1001,7 @@ class BatchEngine:
             self._refuse(count, a)
         ints = self._ep_int[:, :count].copy()
         episodes = _build(
-            EpisodeStatistics,
+            EndedEpisodes,
             agents=ints[_EP_AGENT],
             cumulative_reward=self._ep_ret[:count].copy(),
             steps=ints[_EP_STEPS],

@@ -12,7 +12,7 @@
 """
 
 from amaze.evaluation.policy import EpisodeResults, Policy, record_episode, run_episodes
-from amaze.evaluation.protocol import EpisodeScore, EvaluationReport, Evaluator, evaluate
+from amaze.evaluation.protocol import EpisodeResult, EvaluationReport, Evaluator, evaluate
 from amaze.evaluation.suite import (
     PAPER_EVALUATION_MAZE,
     PAPER_TRAINING_MAZE,
@@ -23,8 +23,8 @@ from amaze.evaluation.suite import (
 __all__ = [
     "PAPER_EVALUATION_MAZE",
     "PAPER_TRAINING_MAZE",
+    "EpisodeResult",
     "EpisodeResults",
-    "EpisodeScore",
     "EvaluationReport",
     "EvaluationSuite",
     "Evaluator",

@@ -39,6 +39,7 @@ from amaze.envs.gym_env import action_space, observation_space
 from amaze.evaluation.policy import as_policy_observations
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 from rl_baselines import RLConfigError
 
 __all__ = ["MazeVecEnv"]
@@ -60,8 +61,7 @@ class MazeVecEnv(VecEnv):
         *,
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
     ) -> None:
-        if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
-            raise RLConfigError(f"n_envs {n_envs!r} is not a positive integer")
+        n_envs = check_integer("n_envs", n_envs, minimum=1, error=RLConfigError)
         self.mazes = as_mazes(mazes)
         self.robot = as_robot(robot)
         self.engine = BatchEngine(

@@ -24,6 +24,7 @@ from amaze.agents.robot import Robot, as_robot
 from amaze.envs.gym_env import DEFAULT_MAZE, action_space, observation_space
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 
 
 class MazeVectorEnv(VectorEnv):
@@ -41,8 +42,7 @@ class MazeVectorEnv(VectorEnv):
         robot: Robot | str = "DD",
         deadline_factor: float = 4.0,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
-            raise ValueError(f"num_envs {num_envs!r} is not a positive integer")
+        num_envs = check_integer("num_envs", num_envs, minimum=1)
         self.mazes = as_mazes(maze)
         self.robot = as_robot(robot)
         self.num_envs = num_envs

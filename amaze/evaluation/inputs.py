@@ -65,6 +65,7 @@ from amaze.maze.render import Palette, palette
 from amaze.maze.sign_images import sign_frames
 from amaze.maze.signs import Sign, SignKind
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 
 __all__ = [
     "CSV_COLUMNS",
@@ -625,11 +626,9 @@ class _SummaryPicture:
     GUTTER = 96
 
     def __init__(self, result: InputRecognition, colors: Palette, columns: int) -> None:
-        if isinstance(columns, bool) or not isinstance(columns, int) or columns < 1:
-            raise InputRecognitionError(f"columns={columns!r} must be a positive integer")
         self.result = result
         self.colors = colors
-        self.columns = columns
+        self.columns = check_integer("columns", columns, minimum=1, error=InputRecognitionError)
         robot = result.inputs.robot
         if robot.discrete_inputs:
             self.cell = 42

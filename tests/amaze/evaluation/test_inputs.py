@@ -511,7 +511,7 @@ def test_summary_png_grows_with_the_number_of_inputs(tmp_path):
 
 def test_summary_png_rejects_a_bad_column_count(tmp_path):
     result = evaluate_inputs(always_east, enumerate_inputs("DD", ["1"]))
-    with pytest.raises(InputRecognitionError, match="columns=0"):
+    with pytest.raises(InputRecognitionError, match="columns 0"):
         result.save_summary_png(tmp_path / "x.png", columns=0)
     with pytest.raises(ValueError, match="purple"):
         result.save_summary_png(tmp_path / "x.png", theme="purple")

@@ -28,7 +28,13 @@ from amaze.validation import check_integer
 
 
 class MazeVectorEnv(VectorEnv):
-    """``num_envs`` agents in one or several mazes, on the batch engine."""
+    """``num_envs`` agents in one or several mazes, on the batch engine.
+
+    The gymnasium vector environment of ``AMaze-v0`` (``terminated`` /
+    ``truncated``, batched ``infos`` with masks); stable-baselines3 gets its own
+    adapter over the same engine, ``rl_baselines.vec_env.SB3VecEnv`` (SB3's
+    ``VecEnv`` API), which :mod:`amaze` does not import.
+    """
 
     metadata: ClassVar[dict[str, Any]] = {
         "autoreset_mode": AutoresetMode.SAME_STEP,

@@ -29,8 +29,9 @@ import time
 import numpy as np
 
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE, standard_suite
+from amaze.maze import rotations
 from evolution.networks import NetworkSpec
-from evolution.population import PopulationEvaluator, with_rotations
+from evolution.population import PopulationEvaluator
 
 
 def _hidden(text: str) -> tuple[int, ...]:
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"network {spec.to_dict()}: {spec.n_params} parameters")
     started = time.perf_counter()
     suite = PopulationEvaluator(standard_suite().maze_strings(), spec.robot)
-    paper = PopulationEvaluator(with_rotations(PAPER_TRAINING_MAZE), spec.robot)
+    paper = PopulationEvaluator(rotations(PAPER_TRAINING_MAZE), spec.robot)
     print(f"mazes prepared in {time.perf_counter() - started:.2f} s (once per run)")
     measure("standard suite", suite, spec, args)
     measure("paper training maze x 4 rotations", paper, spec, args)

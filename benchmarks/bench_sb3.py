@@ -1,11 +1,11 @@
 """Throughput of the SB3 adapter and of SB3 training on it (env steps per second).
 
-1. Stepping, random actions drawn beforehand (seeded): :class:`MazeVecEnv` (one
+1. Stepping, random actions drawn beforehand (seeded): :class:`SB3VecEnv` (one
    batch engine) against SB3's ``DummyVecEnv`` over N ``gymnasium.make("AMaze-v0")``
    environments, for N = 8, 16, 64 (``--n-envs``); each repeat times ``--steps``
    vector steps, the median over ``--repeats`` is printed.
 2. Training: PPO and A2C (SB3 defaults, ``MlpPolicy``, torch with 1 thread) on the
-   training maze's 4 rotations with ``MazeVecEnv``: env steps per second and the
+   training maze's 4 rotations with ``SB3VecEnv``: env steps per second and the
    share of wall-clock time spent inside the environment's ``step_wait``.
 
 Usage: ``python benchmarks/bench_sb3.py [--robot DD] [--train-steps 20000] [--json]``.
@@ -27,8 +27,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 import amaze  # noqa: F401  (registers AMaze-v0)
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
-from rl_baselines.train import rotations
-from rl_baselines.vec_env import MazeVecEnv
+from amaze.maze import rotations
+from rl_baselines.vec_env import SB3VecEnv
 
 
 def _rate(env: Any, actions: np.ndarray, repeats: int) -> float:
@@ -48,12 +48,12 @@ def _maker(maze: str, robot: str) -> Any:
 
 
 def stepping(robot: str, sizes: list[int], steps: int, repeats: int) -> list[dict[str, Any]]:
-    """Steps/s of MazeVecEnv and DummyVecEnv for each number of environments."""
+    """Steps/s of SB3VecEnv and DummyVecEnv for each number of environments."""
     mazes = rotations(PAPER_TRAINING_MAZE)
     rows = []
     for n in sizes:
         actions = np.random.default_rng(n).integers(0, 4, size=(steps, n))
-        ours = MazeVecEnv(mazes, robot, n, seed=0)
+        ours = SB3VecEnv(mazes, robot, n, seed=0)
         dummy = DummyVecEnv([_maker(mazes[k % len(mazes)], robot) for k in range(n)])
         rows.append(
             {
@@ -66,8 +66,8 @@ def stepping(robot: str, sizes: list[int], steps: int, repeats: int) -> list[dic
     return rows
 
 
-class _TimedEnv(MazeVecEnv):
-    """MazeVecEnv that adds up the time spent in ``step_wait``."""
+class _TimedEnv(SB3VecEnv):
+    """SB3VecEnv that adds up the time spent in ``step_wait``."""
 
     env_seconds = 0.0
 
@@ -120,7 +120,7 @@ def main() -> None:
         print(json.dumps({"stepping": step_rows, "training": train_rows}, indent=2))
         return
     print(f"stepping, robot {args.robot}, random actions (env steps/s, median of {args.repeats})")
-    print(f"{'n_envs':>6} {'MazeVecEnv':>12} {'DummyVecEnv':>12} {'speed-up':>9}")
+    print(f"{'n_envs':>6} {'SB3VecEnv':>12} {'DummyVecEnv':>12} {'speed-up':>9}")
     for r in step_rows:
         ratio = r["maze_vec_env"] / r["dummy_vec_env"]
         print(f"{r['n_envs']:>6} {r['maze_vec_env']:>12,.0f} {r['dummy_vec_env']:>12,.0f} "

@@ -39,9 +39,8 @@ from amaze.agents.engine import BatchEngine
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import Robot, as_robot
 from amaze.evaluation.policy import EpisodeResults, run_episodes
-from amaze.evaluation.suite import rotations
-from amaze.maze.maze import Maze, as_mazes
-from amaze.maze.spec import MazeSpec
+from amaze.maze import Maze, MazeSpec, as_mazes
+from amaze.maze import rotations as maze_rotations  # the ``rotations`` flag shadows the name
 from amaze.validation import check_integer
 from evolution import EvolutionConfigError
 
@@ -52,7 +51,6 @@ __all__ = [
     "PopulationPolicy",
     "PopulationResult",
     "SplittablePopulation",
-    "with_rotations",
 ]
 
 #: Fitness measures: the mean over an individual's episodes of one of these.
@@ -156,27 +154,13 @@ class EvaluationBackend(Protocol):
     def evaluate(self, policy: PopulationPolicy) -> PopulationResult: ...
 
 
-def _maze_string(maze: Maze | MazeSpec | str) -> str:
-    if isinstance(maze, str):
-        return maze
-    if isinstance(maze, Maze | MazeSpec):
-        return maze.to_string()
-    raise EvolutionConfigError(f"expected a maze, a maze spec or a maze string, not {maze!r}")
-
-
-def with_rotations(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) -> list[str]:
-    """Every maze of ``mazes`` in its 4 rotations (start in each corner), maze by maze."""
-    items = [mazes] if isinstance(mazes, str | Maze | MazeSpec) else list(mazes)
-    return [rotated for maze in items for rotated in rotations(_maze_string(maze))]
-
-
 class PopulationEvaluator:
     """Fitness of populations on one maze set (M episodes per individual).
 
-    ``mazes`` are played as given, once each (``rotations=True`` expands each
-    to its 4 rotations first, see :func:`with_rotations`). ``fitness`` is one of
-    :data:`FITNESS`. Mazes are generated and compiled once; one engine is kept
-    per population size.
+    ``mazes`` (mazes, specs or maze strings) are played as given, once each
+    (``rotations=True`` expands each to its 4 rotations first, see
+    :func:`amaze.maze.rotations`). ``fitness`` is one of :data:`FITNESS`. Mazes
+    are generated and compiled once; one engine is kept per population size.
     """
 
     def __init__(
@@ -192,9 +176,7 @@ class PopulationEvaluator:
             raise EvolutionConfigError(f"fitness {fitness!r} is not one of {', '.join(FITNESS)}")
         try:
             self.robot = as_robot(robot)
-            if rotations:
-                mazes = with_rotations(mazes)
-            self.mazes: list[Maze] = as_mazes(mazes)
+            self.mazes: list[Maze] = as_mazes(maze_rotations(mazes) if rotations else mazes)
         except EvolutionConfigError:
             raise
         except ValueError as error:

@@ -51,6 +51,7 @@ def run_agents(out: Path, robot: str = "DD") -> None:
     from amaze.agents.trajectories import save_episode_gif, save_trajectory_png
     from amaze.evaluation.controllers import OracleController, RandomController
     from amaze.evaluation.inputs import evaluate_inputs, inputs_for_maze
+    from amaze.evaluation.inputs_picture import save_summary_png
     from amaze.evaluation.policy import record_episode
     from amaze.evaluation.protocol import Evaluator
     from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, standard_suite
@@ -78,7 +79,7 @@ def run_agents(out: Path, robot: str = "DD") -> None:
         PAPER_EVALUATION_MAZE, robot
     ))  # fmt: skip
     recognition.write_csv(agents_dir / "inputs_random.csv")
-    recognition.save_summary_png(agents_dir / "inputs_random.png")
+    save_summary_png(recognition, agents_dir / "inputs_random.png")
     print(
         f"\ninput-recognition picture of the random controller: {agents_dir / 'inputs_random.png'}"
     )

@@ -3,7 +3,7 @@
 ``rl_baselines`` depends on :mod:`amaze` (never the reverse) and on torch and
 stable-baselines3, which are imported here and nowhere in :mod:`amaze`.
 
-* :mod:`rl_baselines.vec_env`: :class:`MazeVecEnv`, an SB3 ``VecEnv`` stepping all
+* :mod:`rl_baselines.vec_env`: :class:`SB3VecEnv`, an SB3 ``VecEnv`` stepping all
   environments together on the batch engine;
 * :mod:`rl_baselines.networks`: a small CNN features extractor for 15x15 images;
 * :mod:`rl_baselines.agent`: :class:`SB3Agent`, a trained model as a policy of the

@@ -74,7 +74,7 @@ from amaze.validation import check_integer
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, algorithm_class
 from rl_baselines.networks import small_cnn_kwargs
-from rl_baselines.vec_env import MazeVecEnv
+from rl_baselines.vec_env import SB3VecEnv
 
 __all__ = ["SB3Run", "TrainConfig", "resume", "train"]
 
@@ -201,10 +201,10 @@ class SB3Run(Run):
         """Wall-clock seconds of training, over every resumed part of the run."""
         return self.seconds_before + (time.monotonic() - self.started)
 
-    def _env(self, stage: int) -> MazeVecEnv:
+    def _env(self, stage: int) -> SB3VecEnv:
         """The training environments of ``stage`` (one rotation per environment)."""
         c = self.config
-        return MazeVecEnv(list(self.stages[stage].training), c.robot, c.n_envs, c.seed)
+        return SB3VecEnv(list(self.stages[stage].training), c.robot, c.n_envs, c.seed)
 
     def _tensorboard_dir(self) -> str | None:
         return str(self.out / "tensorboard") if self.config.tensorboard else None

@@ -1,11 +1,11 @@
 """An SB3 ``VecEnv`` over the batch engine: all environments stepped together.
 
 SB3's own vectorisation (``DummyVecEnv``) loops over N Python environments;
-:class:`MazeVecEnv` instead drives one :class:`~amaze.agents.engine.BatchEngine` with
+:class:`SB3VecEnv` instead drives one :class:`~amaze.agents.engine.BatchEngine` with
 N agents, so a step of all environments is one call into compiled code.
 Environment ``k`` plays ``mazes[k % len(mazes)]``.
 
-SB3 semantics: :meth:`MazeVecEnv.step_wait` returns ``(obs, rewards float32,
+SB3 semantics: :meth:`SB3VecEnv.step_wait` returns ``(obs, rewards float32,
 dones, infos)``; an environment whose episode ended is reset in the same step
 (the returned observation is the first of the new episode) and its info holds
 ``terminal_observation``, ``TimeLimit.truncated`` (deadline reached without
@@ -39,13 +39,20 @@ from amaze.envs.gym_env import action_space, observation_space
 from amaze.evaluation.policy import as_policy_observations
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 from rl_baselines import RLConfigError
 
-__all__ = ["MazeVecEnv"]
+__all__ = ["SB3VecEnv"]
 
 
-class MazeVecEnv(VecEnv):
+class SB3VecEnv(VecEnv):
     """``n_envs`` SB3 environments in ``mazes`` for ``robot``, on one batch engine.
+
+    The stable-baselines3 adapter (SB3's ``VecEnv`` API: ``step_async`` /
+    ``step_wait``, ``dones`` and per-environment ``infos``); the gymnasium
+    vector environment over the same engine is
+    :class:`amaze.envs.vector_env.MazeVectorEnv` (``terminated`` /
+    ``truncated`` and gymnasium's batched infos).
 
     ``seed`` is accepted for SB3's interface; the mazes and the simulation are
     deterministic, so the environment itself draws no random numbers.
@@ -60,8 +67,7 @@ class MazeVecEnv(VecEnv):
         *,
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
     ) -> None:
-        if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
-            raise RLConfigError(f"n_envs {n_envs!r} is not a positive integer")
+        n_envs = check_integer("n_envs", n_envs, minimum=1, error=RLConfigError)
         self.mazes = as_mazes(mazes)
         self.robot = as_robot(robot)
         self.engine = BatchEngine(

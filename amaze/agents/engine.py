@@ -57,9 +57,10 @@ from amaze.agents.rewards import (
 from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
 from amaze.agents.tables import MazeTables, compile_mazes
 from amaze.errors import EpisodeEndedError
-from amaze.maze.maze import Maze
+from amaze.maze.maze import Maze, as_maze
+from amaze.maze.spec import MazeSpec
 
-__all__ = ["BatchEngine", "EpisodeEndedError", "EpisodeStatistics", "StepResult"]
+__all__ = ["BatchEngine", "EndedEpisodes", "EpisodeEndedError", "StepResult"]
 
 _Dataclass = TypeVar("_Dataclass")
 
@@ -672,8 +673,15 @@ def _observe_all_continuous(ist, fst, mint, canvas, canvas_off, out):
 
 
 @dataclass(frozen=True)
-class EpisodeStatistics:
-    """Statistics of the episodes that ended in one step, aligned with ``agents``.
+class EndedEpisodes:
+    """The episodes that ended in one :meth:`BatchEngine.step`, aligned with ``agents``.
+
+    Only the agents whose episode ended in that step appear (often none), in
+    the order of ``agents``; a whole run's scored episodes, one per agent, are
+    gathered from successive steps into
+    :class:`~amaze.evaluation.policy.EpisodeResults`, and the episode in
+    progress of a :class:`~amaze.agents.simulation.Simulation` is counted by
+    :class:`~amaze.agents.simulation.EpisodeCounters`.
 
     ``cumulative_reward`` is the reference's raw return ``R``; ``steps``,
     ``collisions``, ``backsteps`` its counters; ``success`` whether the goal was
@@ -731,7 +739,7 @@ class StepResult:
     ``rewards`` float64 (n,); ``terminated`` (goal reached) and ``truncated``
     (deadline) bool (n,); ``final_observations`` (len(episodes), ...): the last
     observation of each episode that ended, aligned with ``episodes.agents``;
-    ``episodes``: their statistics.
+    ``episodes``: those episodes (:class:`EndedEpisodes`).
     """
 
     observations: np.ndarray
@@ -739,7 +747,7 @@ class StepResult:
     terminated: np.ndarray
     truncated: np.ndarray
     final_observations: np.ndarray
-    episodes: EpisodeStatistics
+    episodes: EndedEpisodes
 
     @property
     def done(self) -> np.ndarray:
@@ -782,6 +790,7 @@ def _build(cls: type[_Dataclass], **fields: object) -> _Dataclass:
 class BatchEngine:
     """``n_agents`` agents of one robot kind in a list of mazes, stepped together.
 
+    ``mazes`` may be mazes, specs or maze strings (generated once, here).
     Agent ``k`` runs in maze ``assignment[k]`` (default ``k % len(mazes)``).
     Discrete and hybrid robots take actions ``0..3`` (E, N, W, S), int (n,);
     continuous robots take accelerations, float (n, 2), not clipped (as in the
@@ -796,7 +805,7 @@ class BatchEngine:
 
     def __init__(
         self,
-        mazes: Sequence[Maze | str],
+        mazes: Sequence[Maze | MazeSpec | str],
         robot: Robot | str,
         n_agents: int,
         *,
@@ -808,7 +817,7 @@ class BatchEngine:
         if n_agents < 1:
             raise ValueError(f"n_agents must be positive, got {n_agents}")
         self.robot = as_robot(robot)
-        self.mazes = [m if isinstance(m, Maze) else Maze.from_string(m) for m in mazes]
+        self.mazes = [as_maze(m) for m in mazes]
         self.tables: MazeTables = compile_mazes(self.mazes, self.robot, deadline_factor)
         self.n_agents = int(n_agents)
         self.deadline_factor = float(deadline_factor)
@@ -992,7 +1001,7 @@ class BatchEngine:
             self._refuse(count, a)
         ints = self._ep_int[:, :count].copy()
         episodes = _build(
-            EpisodeStatistics,
+            EndedEpisodes,
             agents=ints[_EP_AGENT],
             cumulative_reward=self._ep_ret[:count].copy(),
             steps=ints[_EP_STEPS],

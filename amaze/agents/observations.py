@@ -34,6 +34,7 @@ from amaze.errors import AmazeError
 from amaze.maze.maze import Maze
 from amaze.maze.sign_images import sign_frames
 from amaze.maze.signs import Sign
+from amaze.validation import check_integer, check_number
 
 __all__ = [
     "ObservationError",
@@ -76,10 +77,14 @@ def discrete_input(
             f"sign_value={sign_value!r} and sign_direction={sign_direction!r}: give both or neither"
         )
     if sign_value is not None:
-        if isinstance(sign_value, bool) or not isinstance(sign_value, (int, float, np.floating)):
-            raise ObservationError(f"sign_value {sign_value!r} is not a number")
-        if not 0.0 < float(sign_value) <= 1.0:
-            raise ObservationError(f"sign_value {sign_value!r} is not in ]0, 1]")
+        check_number(
+            "sign_value",
+            sign_value,
+            minimum=0,
+            strict_minimum=True,
+            maximum=1,
+            error=ObservationError,
+        )
     sign_direction = _check_side("sign_direction", sign_direction)
     return _discrete_input(wall_array, arrival, sign_value, sign_direction)
 
@@ -100,12 +105,8 @@ def draw_cell(
     :raises ObservationError: naming the bad value.
     """
     wall_array = _check_walls(walls)
-    if (
-        not isinstance(vision, (int, np.integer))
-        or isinstance(vision, bool)
-        or vision % 2 != 1
-        or vision < MIN_VISION
-    ):
+    check_integer("vision", vision, minimum=MIN_VISION, error=ObservationError)
+    if vision % 2 != 1:
         raise ObservationError(f"vision {vision!r} must be an odd integer of at least {MIN_VISION}")
     arrival = _check_side("arrival", arrival)
     if arrival is not None and wall_array[arrival]:
@@ -178,9 +179,10 @@ def _check_walls(walls: object) -> np.ndarray:
 def _check_side(name: str, side: object) -> int | None:
     if side is None:
         return None
-    if isinstance(side, bool) or not isinstance(side, (int, np.integer)) or not 0 <= side <= 3:
+    direction = check_integer(name, side, error=ObservationError)
+    if not 0 <= direction <= 3:
         raise ObservationError(f"{name} {side!r} is not a direction 0..3 (E, N, W, S) or None")
-    return int(side)
+    return direction
 
 
 def _wall_code(walls: Sequence[int] | np.ndarray) -> str:

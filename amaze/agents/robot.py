@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from amaze.errors import AmazeError
+from amaze.validation import check_integer
 
 DEFAULT_VISION = 15
 MIN_VISION = 5
@@ -58,8 +59,7 @@ class Robot:
             object.__setattr__(self, "vision", None)
             return
         vision = DEFAULT_VISION if self.vision is None else self.vision
-        if not isinstance(vision, int) or isinstance(vision, bool):
-            raise RobotStringError(f"robot vision {vision!r} is not an integer")
+        vision = check_integer("robot vision", vision, error=RobotStringError)
         if vision % 2 != 1 or vision < MIN_VISION:
             raise RobotStringError(f"robot vision {vision} must be odd and at least {MIN_VISION}")
         object.__setattr__(self, "vision", vision)

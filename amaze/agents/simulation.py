@@ -29,8 +29,13 @@ from amaze.maze.spec import MazeSpec
 
 
 @dataclass
-class EpisodeStats:
-    """Counters of one episode.
+class EpisodeCounters:
+    """The running counters of the episode in progress of one :class:`Simulation`.
+
+    They change at every step (``Simulation.stats``) and restart with the
+    episode; finished episodes are held elsewhere: those that ended in one
+    batch-engine step in :class:`~amaze.agents.engine.EndedEpisodes`, one per
+    agent of a whole run in :class:`~amaze.evaluation.policy.EpisodeResults`.
 
     ``sign_moves[kind] = [correct, wrong]`` counts the moves made from a cell
     holding a sign of that kind (clue, lure, trap), for discrete actions: a move
@@ -106,7 +111,7 @@ class Simulation:
         self.previous_cell = self.maze.start
         self.timestep = 0
         self.cumulative_reward = 0.0
-        self.stats = EpisodeStats()
+        self.stats = EpisodeCounters()
         self.trajectory = Trajectory() if self.record_trajectory else None
 
     @property

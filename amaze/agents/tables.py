@@ -34,8 +34,9 @@ import numpy as np
 
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR, RewardScheme
 from amaze.agents.robot import Robot, as_robot
-from amaze.maze.maze import Maze
+from amaze.maze.maze import Maze, as_maze
 from amaze.maze.sign_images import sign_frames_u8
+from amaze.maze.spec import MazeSpec
 
 #: Gray level of walls and of the origin marker.
 WHITE = 255
@@ -183,13 +184,13 @@ def maze_canvas(maze: Maze, tiles: np.ndarray, vision: int) -> np.ndarray:
 
 
 def compile_mazes(
-    mazes: Sequence[Maze | str],
+    mazes: Sequence[Maze | MazeSpec | str],
     robot: Robot | str,
     deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
 ) -> MazeTables:
-    """Compile ``mazes`` (or maze strings) into the lookup tables of ``robot``'s mode."""
+    """Compile ``mazes`` (or their specs or strings) into the lookup tables of ``robot``'s mode."""
     robot = as_robot(robot)
-    mazes = [m if isinstance(m, Maze) else Maze.from_string(m) for m in mazes]
+    mazes = [as_maze(m) for m in mazes]
     if not mazes:
         raise ValueError("compile_mazes needs at least one maze")
     dt = 1.0 if robot.discrete_outputs else 0.1

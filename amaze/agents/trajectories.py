@@ -45,6 +45,7 @@ from amaze.maze.directions import OFFSETS
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.render import Color, MazeLayout, Palette, RenderOptions, render_maze
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer, check_number
 
 __all__ = [
     "TrajectoryError",
@@ -720,15 +721,10 @@ def frame_steps(n_steps: int, max_frames: int) -> list[int]:
     """The states shown by an animation of ``n_steps`` steps: evenly spread, at most
     ``max_frames``, always the first (0, before any step) and the last (``n_steps``).
     """
-    if not _is_int(max_frames) or max_frames < 2:
-        raise TrajectoryError(f"max_frames={max_frames!r} must be an integer of at least 2")
-    count = min(n_steps + 1, int(max_frames))
+    frames = check_integer("max_frames", max_frames, minimum=2, error=TrajectoryError)
+    count = min(n_steps + 1, frames)
     # floor(x + 1/2) rather than round(): ties to even could give two equal indices.
     return [int(v) for v in np.floor(np.linspace(0, n_steps, count) + 0.5)]
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
 def render_episode_frames(
@@ -833,10 +829,10 @@ def save_episode_gif(
     repeated) and consecutive frames that are identical once quantised are merged
     into one longer frame, as GIF viewers would show them anyway.
     """
-    if not isinstance(fps, (int, float, np.integer, np.floating)) or not 0 < fps <= 50:
-        raise TrajectoryError(f"fps={fps!r} must be a number in (0, 50] (frames per second)")
-    if not isinstance(final_pause, (int, float, np.integer, np.floating)) or final_pause < 0:
-        raise TrajectoryError(f"final_pause={final_pause!r} must be a non-negative number")
+    fps = check_number(
+        "fps", fps, minimum=0, strict_minimum=True, maximum=50, error=TrajectoryError
+    )
+    final_pause = check_number("final_pause", final_pause, minimum=0, error=TrajectoryError)
     frames = render_episode_frames(maze, trajectory, max_frames=max_frames, **kwargs)
     frame_ms = max(20, round(1000 / float(fps)))
     durations = [frame_ms] * len(frames)

@@ -185,7 +185,9 @@ def _cmd_inputs(args: argparse.Namespace) -> None:
         recognition.write_csv(csv_path)
         print(f"table -> {csv_path}")
     if png_path is not None:
-        recognition.save_summary_png(png_path)
+        from amaze.evaluation.inputs_picture import save_summary_png
+
+        save_summary_png(recognition, png_path)
         print(f"summary -> {png_path}")
 
 

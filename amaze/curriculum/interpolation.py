@@ -47,6 +47,7 @@ from fractions import Fraction
 from amaze.errors import AmazeError, MazeStringError
 from amaze.maze.signs import Sign
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 
 #: Number of stages of the paper's interpolation protocol.
 DEFAULT_STAGES = 10
@@ -79,10 +80,9 @@ def interpolate(
     as both mazes carry a seed (a string without ``M`` draws a random one).
     """
     first, last = _as_spec(start, "start"), _as_spec(end, "end")
-    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
-        raise InterpolationError(f"number of stages n={n!r} must be an integer >= 2")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
-        raise InterpolationError(f"seed {seed!r} is not a non-negative integer")
+    n = check_integer("number of stages n", n, minimum=2, error=InterpolationError)
+    if seed is not None:
+        seed = check_integer("seed", seed, minimum=0, error=InterpolationError)
     stage_seed = last.seed if seed is None else seed
     stages = [first]
     for i in range(1, n - 1):

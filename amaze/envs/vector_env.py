@@ -24,10 +24,17 @@ from amaze.agents.robot import Robot, as_robot
 from amaze.envs.gym_env import DEFAULT_MAZE, action_space, observation_space
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 
 
 class MazeVectorEnv(VectorEnv):
-    """``num_envs`` agents in one or several mazes, on the batch engine."""
+    """``num_envs`` agents in one or several mazes, on the batch engine.
+
+    The gymnasium vector environment of ``AMaze-v0`` (``terminated`` /
+    ``truncated``, batched ``infos`` with masks); stable-baselines3 gets its own
+    adapter over the same engine, ``rl_baselines.vec_env.SB3VecEnv`` (SB3's
+    ``VecEnv`` API), which :mod:`amaze` does not import.
+    """
 
     metadata: ClassVar[dict[str, Any]] = {
         "autoreset_mode": AutoresetMode.SAME_STEP,
@@ -41,8 +48,7 @@ class MazeVectorEnv(VectorEnv):
         robot: Robot | str = "DD",
         deadline_factor: float = 4.0,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
-            raise ValueError(f"num_envs {num_envs!r} is not a positive integer")
+        num_envs = check_integer("num_envs", num_envs, minimum=1)
         self.mazes = as_mazes(maze)
         self.robot = as_robot(robot)
         self.num_envs = num_envs

@@ -5,33 +5,32 @@
 * :mod:`~amaze.evaluation.controllers`: random, oracle and tabular controllers;
 * :mod:`~amaze.evaluation.inputs`: the input-recognition test (its picture in
   :mod:`~amaze.evaluation.inputs_picture`);
-* :mod:`~amaze.evaluation.suite`: the standard evaluation suite and maze rotations;
+* :mod:`~amaze.evaluation.suite`: the standard evaluation suite (each maze in its
+  rotations, :func:`amaze.maze.rotations`);
 * :mod:`~amaze.evaluation.protocol`: :func:`evaluate` / :class:`Evaluator`, the one
   protocol every agent goes through.
 """
 
 from amaze.evaluation.policy import EpisodeResults, Policy, record_episode, run_episodes
-from amaze.evaluation.protocol import EpisodeScore, EvaluationReport, Evaluator, evaluate
+from amaze.evaluation.protocol import EpisodeResult, EvaluationReport, Evaluator, evaluate
 from amaze.evaluation.suite import (
     PAPER_EVALUATION_MAZE,
     PAPER_TRAINING_MAZE,
     EvaluationSuite,
-    rotations,
     standard_suite,
 )
 
 __all__ = [
     "PAPER_EVALUATION_MAZE",
     "PAPER_TRAINING_MAZE",
+    "EpisodeResult",
     "EpisodeResults",
-    "EpisodeScore",
     "EvaluationReport",
     "EvaluationSuite",
     "Evaluator",
     "Policy",
     "evaluate",
     "record_episode",
-    "rotations",
     "run_episodes",
     "standard_suite",
 ]

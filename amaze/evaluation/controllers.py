@@ -37,6 +37,7 @@ from amaze.errors import AmazeError
 from amaze.maze.directions import OFFSETS, OFFSETS_ARRAY
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer, check_number
 
 __all__ = [
     "CONTROLLERS",
@@ -427,10 +428,8 @@ def train_tabular(
         raise ControllerError(
             f"training method {method!r} is not one of {', '.join(TRAINING_METHODS)}"
         )
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ControllerError(f"episodes {episodes!r} must be a positive integer")
-    if not (isinstance(alpha, int | float) and 0 < alpha <= 1):
-        raise ControllerError(f"alpha {alpha!r} must be in (0, 1]")
+    episodes = check_integer("episodes", episodes, minimum=1, error=ControllerError)
+    check_number("alpha", alpha, minimum=0, strict_minimum=True, maximum=1, error=ControllerError)
     _check_probability("gamma", gamma)
     items = [mazes] if isinstance(mazes, Maze | MazeSpec | str) else list(mazes)
     if not items:
@@ -528,31 +527,27 @@ def _batch_size(observations: np.ndarray) -> int:
 
 
 def _check_seed(seed: Any) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ControllerError(f"seed {seed!r} must be a non-negative integer")
-    return int(seed)
+    return check_integer("seed", seed, minimum=0, error=ControllerError)
 
 
 def _check_probability(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 1:
-        raise ControllerError(f"{name} {value!r} must be a number in [0, 1]")
-    return float(value)
+    return check_number(name, value, minimum=0, maximum=1, error=ControllerError)
 
 
 def _check_action(action: Any) -> int:
-    if isinstance(action, bool) or not isinstance(action, int | np.integer):
+    direction = check_integer("action", action, error=ControllerError)
+    if not 0 <= direction < N_ACTIONS:
         raise ControllerError(f"action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
-    if not 0 <= action < N_ACTIONS:
-        raise ControllerError(f"action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
-    return int(action)
+    return direction
 
 
 def _numbers(values: Any, count: int) -> bool:
-    return (
-        isinstance(values, list)
-        and len(values) == count
-        and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in values
-        )
-    )
+    """Whether ``values`` is a list of ``count`` finite numbers (a Q-table file's entry)."""
+    if not isinstance(values, list) or len(values) != count:
+        return False
+    try:
+        for value in values:
+            check_number("value", value, error=ControllerError)
+    except ControllerError:
+        return False
+    return True

@@ -33,7 +33,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from amaze.agents.engine import BatchEngine, EpisodeStatistics
+from amaze.agents.engine import BatchEngine, EndedEpisodes
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import Robot
 from amaze.agents.simulation import Trajectory
@@ -87,7 +87,13 @@ def _actions(policy: Any, observations: np.ndarray, engine: BatchEngine) -> np.n
 
 @dataclass(frozen=True)
 class EpisodeResults:
-    """One finished episode per agent (arrays aligned with the agents).
+    """One finished episode per agent of a run (arrays aligned with the agents).
+
+    :func:`run_episodes` gathers each agent's first episode from the
+    :class:`~amaze.agents.engine.EndedEpisodes` of successive engine steps
+    (which hold only the episodes that ended in one step); the evaluation
+    protocol turns each agent's entry into an
+    :class:`~amaze.evaluation.protocol.EpisodeResult`, one episode with its maze.
 
     ``cumulative_reward`` is the reference's raw return; ``pretty_reward`` its
     normalisation to [-1, 1]; ``paper_reward`` the paper's R̄ (1 for an optimal run).
@@ -159,7 +165,7 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
                 if retire is not None:
                     retire(agents)
     # the normalised rewards of the scored episodes only, computed once
-    scored = EpisodeStatistics(
+    scored = EndedEpisodes(
         agents=np.arange(n),
         dt=engine.dt,
         deadline_factor=engine.deadline_factor,

@@ -10,7 +10,7 @@ returns an :class:`EvaluationReport`:
 * ``success_rate``: fraction of episodes that reached the goal;
 * ``paper_reward``: mean of the paper's normalised reward R̄ (1 for an optimal
   run; the score of the paper's result tables). Run folders store it as
-  ``normalized_reward``;
+  ``normalized_reward``, the one renaming, made by :meth:`EvaluationReport.summary`;
 * ``pretty_reward``: mean of the reference library's normalised reward;
 * ``input_recognition``: fraction of all enumerated inputs handled correctly,
   with the per-class rates (empty corridor, lure, clue, trap) in
@@ -46,15 +46,21 @@ from amaze.evaluation.suite import PAPER_TRAINING_MAZE, EvaluationSuite, standar
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.spec import MazeSpec
 
-__all__ = ["EpisodeScore", "EvaluationReport", "Evaluator", "evaluate"]
+__all__ = ["EpisodeResult", "EvaluationReport", "Evaluator", "evaluate"]
 
 #: The signs of the input-recognition test: those of the suite's mazes (C1, L.25, T.5).
 INPUT_SIGNS_MAZE = PAPER_TRAINING_MAZE
 
 
 @dataclass(frozen=True)
-class EpisodeScore:
-    """The outcome of one evaluation episode."""
+class EpisodeResult:
+    """The outcome of one evaluation episode, with its maze: one row of the report's CSV.
+
+    Unlike :class:`~amaze.evaluation.policy.EpisodeResults` (arrays, one
+    finished episode per agent of a run), it is one episode of one agent, in
+    plain values, labelled by its maze string, suite column and row, and start
+    corner; ``paper_reward`` is the paper's R̄ of the episode.
+    """
 
     maze: str
     column: str
@@ -78,7 +84,7 @@ class EvaluationReport:
     """Scores of one policy: aggregated figures and every episode (see the module docstring)."""
 
     robot: str
-    episodes: tuple[EpisodeScore, ...]
+    episodes: tuple[EpisodeResult, ...]
     input_recognition: float | None = None
     input_rates: dict[str, float] = field(default_factory=dict)
 
@@ -99,7 +105,7 @@ class EvaluationReport:
 
         ``key="suite_maze"`` groups by (column, row): a suite maze's 4 rotations together.
         """
-        groups: dict[Any, list[EpisodeScore]] = {}
+        groups: dict[Any, list[EpisodeResult]] = {}
         for episode in self.episodes:
             group = (episode.column, episode.row) if key == "suite_maze" else getattr(episode, key)
             groups.setdefault(group, []).append(episode)
@@ -121,7 +127,16 @@ class EvaluationReport:
         return self.grouped("suite_maze")
 
     def summary(self) -> dict[str, Any]:
-        """The aggregated figures, JSON-ready (the keys of a run folder's ``summary.json``)."""
+        """The aggregated figures, JSON-ready (the keys of a run folder's ``summary.json``).
+
+        The paper's R̄ is ``paper_reward`` everywhere in code but
+        ``normalized_reward`` in this dict: the key that ``summary.json`` files
+        have always used, a file contract that must stay. This is the one place
+        where the name changes; everything that writes or reads a summary
+        (run folders, the training commands) goes through this dict, so no
+        other code renames the reward. ``pretty_reward`` (the reference
+        library's normalised reward) keeps its name.
+        """
         return {
             "robot": self.robot,
             "episodes": len(self.episodes),
@@ -134,7 +149,7 @@ class EvaluationReport:
 
     def write_csv(self, path: str | Path) -> None:
         """One row per episode."""
-        names = list(EpisodeScore.__dataclass_fields__)
+        names = list(EpisodeResult.__dataclass_fields__)
         with open(path, "w", newline="", encoding="utf-8") as handle:
             writer = csv.DictWriter(handle, fieldnames=names)
             writer.writeheader()
@@ -226,7 +241,7 @@ class Evaluator:
         """Play ``policy`` once in every maze and run the input-recognition test."""
         results = run_episodes(self.engine, policy)
         episodes = tuple(
-            EpisodeScore(
+            EpisodeResult(
                 maze=self.maze_strings[k],
                 column=self.labels[k][0],
                 row=self.labels[k][1],

@@ -50,10 +50,10 @@ from typing import Any
 import numpy as np
 
 from amaze.errors import AmazeError
+from amaze.maze import rotations
 from amaze.maze.maze import Maze
 from amaze.maze.metrics import surprisingness
 from amaze.maze.signs import SignKind
-from amaze.maze.spec import MazeSpec
 
 __all__ = [
     "COLUMNS",
@@ -65,7 +65,6 @@ __all__ = [
     "SuiteColumn",
     "SuiteMaze",
     "build_suite",
-    "rotations",
     "standard_suite",
 ]
 
@@ -83,11 +82,6 @@ SEED_RANGE = 2**31
 _BATCH = 2048
 
 _DATA_FILE = "evaluation_suite.json"
-
-
-def rotations(maze: str) -> list[str]:
-    """The canonical strings of ``maze`` started from each corner (NW, NE, SW, SE)."""
-    return [spec.to_string() for spec in MazeSpec.from_string(maze).all_rotations()]
 
 
 @dataclass(frozen=True)
@@ -129,7 +123,7 @@ class SuiteMaze:
     surprisingness: float
 
     def rotations(self) -> list[str]:
-        """The maze string started from each corner (NW, NE, SW, SE)."""
+        """The maze string started from each corner (NW, NE, SW, SE), by :func:`rotations`."""
         return rotations(self.string)
 
 

@@ -111,10 +111,6 @@ class Maze:
         """Generate the maze of a maze string (see :mod:`amaze.maze.spec`)."""
         return cls.generate(MazeSpec.from_string(text, **overrides))
 
-    def all_rotations(self) -> list[Maze]:
-        """The same maze started from each corner (NW, NE, SW, SE)."""
-        return [Maze.generate(spec) for spec in self.spec.all_rotations()]
-
     # -- description ------------------------------------------------------
 
     def to_string(self) -> str:
@@ -194,23 +190,35 @@ class Maze:
         return MazeClass.INVALID
 
 
+def _as_spec(maze: Maze | MazeSpec | str) -> MazeSpec:
+    """The spec of a maze, of a spec (itself) or of a maze string (parsed, not generated)."""
+    if isinstance(maze, Maze):
+        return maze.spec
+    if isinstance(maze, MazeSpec):
+        return maze
+    if isinstance(maze, str):
+        return MazeSpec.from_string(maze)
+    raise ValueError(f"expected a MazeSpec, a Maze or a maze string, not {maze!r}")
+
+
+def _as_items(
+    mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str],
+) -> list[Maze | MazeSpec | str]:
+    """One maze (or spec, or string) or a sequence of them, as a non-empty list."""
+    items = [mazes] if isinstance(mazes, str | Maze | MazeSpec) else list(mazes)
+    if not items:
+        raise ValueError("mazes: give at least one maze")
+    return items
+
+
 def as_maze(maze: Maze | MazeSpec | str) -> Maze:
     """A :class:`Maze` from a maze, its spec or its string."""
-    if isinstance(maze, Maze):
-        return maze
-    if isinstance(maze, MazeSpec):
-        return Maze.generate(maze)
-    if isinstance(maze, str):
-        return Maze.from_string(maze)
-    raise ValueError(f"expected a MazeSpec, a Maze or a maze string, not {maze!r}")
+    return maze if isinstance(maze, Maze) else Maze.generate(_as_spec(maze))
 
 
 def as_mazes(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) -> list[Maze]:
     """A non-empty list of mazes from one maze (or spec, or string) or a sequence of them."""
-    items = [mazes] if isinstance(mazes, (str, Maze, MazeSpec)) else list(mazes)
-    if not items:
-        raise ValueError("mazes: give at least one maze")
-    return [as_maze(m) for m in items]
+    return [as_maze(m) for m in _as_items(mazes)]
 
 
 def rotations(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) -> list[str]:
@@ -219,18 +227,9 @@ def rotations(mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str]) ->
     The four rotations of a maze come in the reference's order (NW, NE, SW,
     SE, :meth:`MazeSpec.all_rotations`); this is the one place that expands
     mazes to their rotations (training sets, evaluation sets, the suite).
+    Mazes, specs and strings are accepted; none is generated here (a string is
+    only parsed), and the strings returned are what run folders and reports
+    record, so they are generated once, where they are played.
     """
-    items = [mazes] if isinstance(mazes, str | Maze | MazeSpec) else list(mazes)
-    if not items:
-        raise ValueError("mazes: give at least one maze")
-    specs = []
-    for maze in items:
-        if isinstance(maze, Maze):
-            specs.append(maze.spec)
-        elif isinstance(maze, MazeSpec):
-            specs.append(maze)
-        elif isinstance(maze, str):
-            specs.append(MazeSpec.from_string(maze))
-        else:
-            raise ValueError(f"expected a MazeSpec, a Maze or a maze string, not {maze!r}")
+    specs = [_as_spec(maze) for maze in _as_items(mazes)]
     return [rotated.to_string() for spec in specs for rotated in spec.all_rotations()]

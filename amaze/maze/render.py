@@ -42,6 +42,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.signs import Sign, SignKind, custom_sign_path
+from amaze.validation import check_integer
 
 Color = tuple[int, int, int]
 
@@ -182,18 +183,15 @@ class RenderOptions:
             if not isinstance(value, (bool, np.bool_)):
                 raise ValueError(f"option {name}={value!r} must be a bool")
         cell = self.cell_size
-        if cell is not None and (not _is_int(cell) or not MIN_CELL_SIZE <= cell <= MAX_CELL_SIZE):
-            raise ValueError(
-                f"cell_size={cell!r} must be an integer in {MIN_CELL_SIZE}..{MAX_CELL_SIZE}"
-            )
+        if cell is not None:
+            check_integer("cell_size", cell, minimum=MIN_CELL_SIZE, maximum=MAX_CELL_SIZE)
         wall = self.wall_width
-        if wall is not None and (not _is_int(wall) or wall < 1):
-            raise ValueError(f"wall_width={wall!r} must be a positive integer")
+        if wall is not None:
+            check_integer("wall_width", wall, minimum=1)
         if wall is not None and cell is not None and 2 * wall >= cell:
             raise ValueError(f"wall_width={wall!r} must be less than half of cell_size={cell!r}")
-        margin = self.margin
-        if margin is not None and (not _is_int(margin) or margin < 0):
-            raise ValueError(f"margin={margin!r} must be a non-negative integer")
+        if self.margin is not None:
+            check_integer("margin", self.margin, minimum=0)
 
     def with_overrides(self, **overrides: Any) -> RenderOptions:
         """A copy with some fields changed; an unknown field name raises ValueError."""
@@ -210,10 +208,6 @@ class RenderOptions:
     def colors(self) -> Palette:
         """The palette of these options."""
         return palette(self.theme, self.colorblind)
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
 def _resolve_options(options: RenderOptions | None, overrides: dict[str, Any]) -> RenderOptions:
@@ -519,8 +513,7 @@ def render_mazes_grid(
         raise ValueError("render_mazes_grid needs at least one maze")
     if columns is None:
         columns = int(np.ceil(np.sqrt(len(mazes))))
-    if not _is_int(columns) or columns < 1:
-        raise ValueError(f"columns={columns!r} must be a positive integer")
+    columns = check_integer("columns", columns, minimum=1)
     if labels is True:
         captions: list[str] | None = [maze.to_string() for maze in mazes]
     elif labels is False or labels is None:

@@ -17,7 +17,6 @@ reference no digit is lost (``.125`` stays ``.125``; the reference prints ``.12`
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from dataclasses import dataclass
@@ -27,6 +26,7 @@ from typing import Any, NamedTuple
 
 from amaze.errors import SignError
 from amaze.maze.directions import Cell, Direction
+from amaze.validation import check_number
 
 #: Shapes drawn by the library itself (the reference's built-ins), sorted.
 BUILTIN_SHAPES: tuple[str, ...] = (
@@ -170,11 +170,9 @@ class Sign:
                 f"unknown sign shape '{self.shape}' (known: {', '.join(known_shapes())};"
                 f" register custom PNG images with register_custom_signs or {CUSTOM_SIGNS_ENV})"
             )
-        if isinstance(self.value, bool) or not isinstance(self.value, (int, float)):
-            raise SignError(f"sign value must be a number, not {self.value!r}")
-        value = float(self.value)
-        if not (math.isfinite(value) and 0.0 < value <= 1.0):
-            raise SignError(f"sign value {self.value!r} is not in ]0, 1]")
+        value = check_number(
+            "sign value", self.value, minimum=0, strict_minimum=True, maximum=1, error=SignError
+        )
         object.__setattr__(self, "shape", shape)
         object.__setattr__(self, "value", value)
 

@@ -48,7 +48,6 @@ their digits (``C.125``, where the reference printed the lossy ``C.12``).
 from __future__ import annotations
 
 import dataclasses
-import math
 import re
 import secrets
 import warnings
@@ -58,6 +57,7 @@ from enum import IntEnum
 
 from amaze.errors import MazeStringError, MazeStringWarning, SignError
 from amaze.maze.signs import Sign, format_value
+from amaze.validation import check_integer, check_number
 
 MIN_SIZE, MAX_SIZE = 2, 100
 _SIZE_TOKEN = re.compile(r"[0-9]+x[0-9]+")
@@ -124,15 +124,14 @@ class MazeSpec:
     def __post_init__(self) -> None:
         set_ = object.__setattr__  # frozen dataclass: normalise in place once
         for name in ("width", "height"):
-            value = getattr(self, name)
-            if not _is_int(value) or not MIN_SIZE <= value <= MAX_SIZE:
-                raise MazeStringError(
-                    f"{name} {value!r} is not an integer in {MIN_SIZE}..{MAX_SIZE}"
-                )
+            size = check_integer(
+                name, getattr(self, name), minimum=MIN_SIZE, maximum=MAX_SIZE, error=MazeStringError
+            )
+            set_(self, name, size)
         if self.seed is None:
             set_(self, "seed", random_seed())
-        elif not _is_int(self.seed) or self.seed < 0:
-            raise MazeStringError(f"seed {self.seed!r} is not a non-negative integer")
+        else:
+            set_(self, "seed", check_integer("seed", self.seed, minimum=0, error=MazeStringError))
         try:
             set_(self, "start", StartLocation(self.start))
         except ValueError:
@@ -146,11 +145,7 @@ class MazeSpec:
             value = getattr(self, name)
             if value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise MazeStringError(f"{name} {value!r} is not a number")
-            if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-                raise MazeStringError(f"{name} {value!r} is not in [0, 1]")
-            set_(self, name, float(value))
+            set_(self, name, check_number(name, value, minimum=0, maximum=1, error=MazeStringError))
         # Couplings of the reference (docs/reference-behaviour.md §2.4).
         if not self.p_lure or not self.lure:
             set_(self, "p_lure", None)
@@ -220,10 +215,6 @@ class MazeSpec:
             StartLocation.SOUTH_EAST,
         )
         return [self.where(start=start) for start in order]
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _as_signs(name: str, signs: object) -> tuple[Sign, ...]:

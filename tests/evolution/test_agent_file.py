@@ -15,6 +15,7 @@ from amaze.agents.robot import as_robot
 from amaze.cli.main import main
 from amaze.evaluation.controllers import make_controller
 from amaze.evaluation.protocol import Evaluator
+from amaze.maze import rotations
 from evolution import EvolutionConfigError
 from evolution.agent_file import (
     FORMAT,
@@ -26,7 +27,6 @@ from evolution.agent_file import (
     save_network_agent,
 )
 from evolution.networks import NetworkSpec
-from evolution.population import with_rotations
 
 
 def clue_follower(spec: NetworkSpec) -> np.ndarray:
@@ -233,7 +233,7 @@ def test_loaded_agents_go_through_the_evaluation_protocol(tmp_path):
     path = save_network_agent(tmp_path / "h", spec, params)
     agent = make_controller(str(path), "H7")
     assert agent.robot == as_robot("H7")
-    mazes = with_rotations("M4_6x6_C1")
+    mazes = rotations("M4_6x6_C1")
     report = Evaluator("H7", mazes).evaluate(agent)
     direct = Evaluator("H7", mazes).evaluate(spec.population(params[None]))
     assert report.paper_reward == direct.paper_reward

@@ -11,7 +11,7 @@ from amaze.agents.engine import BatchEngine
 from amaze.evaluation.controllers import OracleController
 from amaze.evaluation.policy import run_episodes
 from amaze.evaluation.protocol import Evaluator
-from amaze.evaluation.suite import rotations
+from amaze.maze import Maze, MazeSpec, rotations
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkSpec
 from evolution.population import (
@@ -19,7 +19,6 @@ from evolution.population import (
     PopulationPolicy,
     PopulationResult,
     SplittablePopulation,
-    with_rotations,
 )
 
 MAZES = ["M4_6x6_C1", "M7_8x8_C1_l.25_L.25", "M2_9x9_C1_l.2_L.25_t.4_T.5", "M3_5x5_U"]
@@ -98,7 +97,7 @@ def test_population_scores_equal_separate_evaluations(evaluator, build):
     assert isinstance(population, SplittablePopulation)
     result = evaluator.evaluate(population)
     assert len(result) == 6 and result.n_episodes == 16
-    reference = Evaluator("DD", with_rotations(MAZES), inputs=False)
+    reference = Evaluator("DD", rotations(MAZES), inputs=False)
     total_steps = 0
     for p in range(6):
         report = reference.evaluate(ReferenceMLP(spec, params[p]))
@@ -123,7 +122,7 @@ def test_hand_built_networks_act_like_amaze_controllers(evaluator):
     vectors.append(linear_dd(clue_follower_weights(), np.zeros(4)))
     population = spec.population(np.stack(vectors))
     result = evaluator.evaluate(population)
-    reference = Evaluator("DD", with_rotations(MAZES), inputs=False)
+    reference = Evaluator("DD", rotations(MAZES), inputs=False)
     controllers = [Constant(a) for a in range(4)] + [ClueFollower()]
     for p, controller in enumerate(controllers):
         report = reference.evaluate(controller)
@@ -140,9 +139,7 @@ def test_clue_following_network_scores_like_the_oracle():
     clue_evaluator = PopulationEvaluator(CLUE_MAZES, "DD", rotations=True)
     policy = NetworkSpec("DD").population(linear_dd(clue_follower_weights(), np.zeros(4))[None])
     result = clue_evaluator.evaluate(policy)
-    oracle = Evaluator("DD", with_rotations(CLUE_MAZES), inputs=False).evaluate(
-        OracleController("DD")
-    )
+    oracle = Evaluator("DD", rotations(CLUE_MAZES), inputs=False).evaluate(OracleController("DD"))
     assert result.success_rate[0] == 1.0 and oracle.success_rate == 1.0
     assert result.paper_reward[0] == pytest.approx(oracle.paper_reward) == pytest.approx(1.0)
     assert result.env_steps == sum(e.steps for e in oracle.episodes)
@@ -154,7 +151,7 @@ def test_skipping_retired_agents_changes_nothing(p_count, mazes):
     base = linear_dd(clue_follower_weights(), np.zeros(4))
     noise = rng.normal(0.0, 1.0, (p_count, base.size)) * np.linspace(0.0, 1.5, p_count)[:, None]
     population = NetworkSpec("DD").population(base + noise)
-    mazes = with_rotations(mazes)
+    mazes = rotations(mazes)
     engine = BatchEngine(mazes, "DD", p_count * len(mazes))
     with_skipping = run_episodes(engine, population)
 
@@ -212,8 +209,14 @@ def test_image_robot_populations(evaluator):
 
 
 def test_maze_sets_and_plain_policies():
-    assert with_rotations("M4_6x6_C1") == rotations("M4_6x6_C1")
-    assert len(with_rotations(MAZES)) == 16
+    assert len(rotations(MAZES)) == 16
+    # Mazes, specs and strings give the same maze set, rotated or not.
+    forms = [Maze.from_string(MAZES[0]), MazeSpec.from_string(MAZES[1]), *MAZES[2:]]
+    assert PopulationEvaluator(forms, "DD", rotations=True).maze_strings == rotations(MAZES)
+    assert (
+        PopulationEvaluator(forms, "DD").maze_strings
+        == PopulationEvaluator(MAZES, "DD").maze_strings
+    )
     single = PopulationEvaluator(MAZES[0], "DD")
     assert single.n_episodes == 1
     assert PopulationEvaluator(MAZES, "DD").n_episodes == 4

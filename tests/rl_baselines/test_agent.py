@@ -13,14 +13,14 @@ from stable_baselines3 import A2C
 from amaze.evaluation.protocol import evaluate
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, algorithm_class
-from rl_baselines.vec_env import MazeVecEnv
+from rl_baselines.vec_env import SB3VecEnv
 
 torch.set_num_threads(1)
 
 
 @pytest.fixture(scope="module")
 def agent() -> SB3Agent:
-    env = MazeVecEnv(["M1_5x5_U", "M2_6x5_C1"], "DD", 4, seed=0)
+    env = SB3VecEnv(["M1_5x5_U", "M2_6x5_C1"], "DD", 4, seed=0)
     model = A2C("MlpPolicy", env, seed=0, device="cpu")
     model.learn(200)
     return SB3Agent(model, "DD")

@@ -1,4 +1,4 @@
-"""MazeVecEnv: SB3 semantics checked against the native gymnasium vector env and the engine."""
+"""SB3VecEnv: SB3 semantics checked against the native gymnasium vector env and the engine."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import amaze  # noqa: F401  (registers AMaze-v0)
 from amaze.agents.engine import BatchEngine
 from rl_baselines import RLConfigError
 from rl_baselines.networks import SmallCNN, small_cnn_kwargs
-from rl_baselines.vec_env import MazeVecEnv
+from rl_baselines.vec_env import SB3VecEnv
 
 torch.set_num_threads(1)
 
@@ -22,7 +22,7 @@ MAZES = ["M1_5x5_U", "M2_6x5_C1", "M3_5x5_C1_l.2_L.25"]
 
 @pytest.mark.parametrize("robot", ["DD", "H", "H11"])
 def test_observations_match_spaces(robot: str) -> None:
-    env = MazeVecEnv(MAZES, robot, 5, seed=0)
+    env = SB3VecEnv(MAZES, robot, 5, seed=0)
     obs = env.reset()
     assert obs.shape == (5, *env.observation_space.shape)
     assert obs.dtype == env.observation_space.dtype
@@ -41,7 +41,7 @@ def test_observations_match_spaces(robot: str) -> None:
 def test_steps_match_native_vector_env(robot: str) -> None:
     """Observations, rewards, ends and terminal observations equal the gymnasium vector env's."""
     n = 6
-    env = MazeVecEnv(MAZES, robot, n, seed=0)
+    env = SB3VecEnv(MAZES, robot, n, seed=0)
     native = gymnasium.make_vec(
         "AMaze-v0", num_envs=n, vectorization_mode="vector_entry_point", maze=MAZES, robot=robot
     )
@@ -78,7 +78,7 @@ def test_steps_match_native_vector_env(robot: str) -> None:
 def test_terminal_observation_is_the_engine_last_observation() -> None:
     """Each environment against its own engine without auto-reset, which keeps the last view."""
     mazes = ["M1_5x5_U", "M2_6x5_C1"]
-    env = MazeVecEnv(mazes, "DD", 2)
+    env = SB3VecEnv(mazes, "DD", 2)
     engines = [BatchEngine([m], "DD", 1, auto_reset=False) for m in mazes]
     env.reset()
     rng = np.random.default_rng(2)
@@ -103,7 +103,7 @@ def test_terminal_observation_is_the_engine_last_observation() -> None:
 
 
 def test_auto_reset_gives_first_observation_of_new_episode() -> None:
-    env = MazeVecEnv(["M1_5x5_U"], "DD", 2)
+    env = SB3VecEnv(["M1_5x5_U"], "DD", 2)
     first = env.reset()
     rng = np.random.default_rng(3)
     for _ in range(500):
@@ -117,13 +117,13 @@ def test_auto_reset_gives_first_observation_of_new_episode() -> None:
 
 def test_bad_input_names_the_value() -> None:
     with pytest.raises(RLConfigError, match="-3"):
-        MazeVecEnv(MAZES, "DD", -3)
+        SB3VecEnv(MAZES, "DD", -3)
     with pytest.raises(ValueError, match="'Q'"):
-        MazeVecEnv(MAZES, "Q", 2)
+        SB3VecEnv(MAZES, "Q", 2)
 
 
 def test_a2c_and_ppo_learn_on_the_adapter() -> None:
-    env = VecCheckNan(MazeVecEnv(MAZES, "DD", 4, seed=0), raise_exception=True)
+    env = VecCheckNan(SB3VecEnv(MAZES, "DD", 4, seed=0), raise_exception=True)
     A2C("MlpPolicy", env, seed=0, device="cpu").learn(200)
     model = PPO("MlpPolicy", env, seed=0, n_steps=64, batch_size=64, n_epochs=1, device="cpu")
     model.learn(256)
@@ -131,7 +131,7 @@ def test_a2c_and_ppo_learn_on_the_adapter() -> None:
 
 
 def test_small_cnn_on_hybrid_images() -> None:
-    env = MazeVecEnv(MAZES, "H", 4, seed=0)
+    env = SB3VecEnv(MAZES, "H", 4, seed=0)
     model = PPO(
         "CnnPolicy",
         env,

@@ -429,9 +429,9 @@ def test_bad_input_names_the_value(maze: Maze, tmp_path) -> None:
         render_trajectory(
             maze, Trajectory([(0.5, 0.5)], [(1.0, 0.0)] * 3, [], final_position=(0.5, 0.5))
         )
-    with pytest.raises(TrajectoryError, match="max_frames=1"):
+    with pytest.raises(TrajectoryError, match="max_frames 1"):
         render_episode_frames(maze, good, max_frames=1)
-    with pytest.raises(TrajectoryError, match="fps=0"):
+    with pytest.raises(TrajectoryError, match="fps 0"):
         save_episode_gif(maze, good, tmp_path / "x.gif", fps=0)
     with pytest.raises(TrajectoryError, match="sparkle"):
         render_trajectory(maze, good, sparkle=True)

@@ -105,7 +105,7 @@ def test_sign_lightness_is_linear_when_both_mazes_have_the_kind():
 
 @pytest.mark.parametrize(
     ("n", "message"),
-    [(1, "n=1"), (0, "n=0"), (True, "n=True"), (2.0, "n=2.0"), ("10", "n='10'")],
+    [(1, "n 1"), (0, "n 0"), (True, "n True"), (2.0, "n 2.0"), ("10", "n '10'")],
 )
 def test_bad_stage_counts_are_rejected(n, message):
     with pytest.raises(InterpolationError, match=message):
@@ -244,7 +244,7 @@ def test_cli_renders_all_stages(capsys, tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["M1_5x5_U", PAPER_TARGET, "-n", "1"], "n=1"),
+        (["M1_5x5_U", PAPER_TARGET, "-n", "1"], "n 1"),
         (["M1_5x5_U", PAPER_TARGET, "-n", "ten"], "'ten'"),
         (["M1_5x5_Q", PAPER_TARGET], "'Q'"),
         (["trivial", "M1_0x5"], "width 0"),

@@ -1,4 +1,6 @@
-"""The input-recognition test: enumeration, observations, scoring, CSV and summary picture.
+"""The input-recognition test: enumeration, observations, scoring and CSV.
+
+Its summary picture is tested in ``test_inputs_picture.py``.
 
 The reference fixture ``inputs_evaluation_C1_L.25_T.5_always_east`` holds the
 140 rows amaze-benchmarker 1.0 produced for a policy that always goes east, for
@@ -14,7 +16,6 @@ import hashlib
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from amaze.agents.observations import (
     ObservationError,
@@ -57,9 +58,6 @@ HYBRID_IMAGES_SHA256 = {
 # Sign-less intersections for clues ["1"] (reference order): arrival and expected side.
 EMPTY_INTERSECTION_ARRIVALS = "NWSNWSNWSEWSEWSEWSENSENSENSENWENWENW"
 EMPTY_INTERSECTION_EXPECTED = "WSWSNNWNNWSWSEEWEENSNSEENEENWNWEENEE"
-
-WRONG = (214, 39, 40)
-CORRECT = (46, 160, 67)
 
 
 def always_east(observations: np.ndarray) -> np.ndarray:
@@ -467,51 +465,3 @@ def test_csv_has_the_reference_columns_and_rows(tmp_path):
         lines = list(csv.reader(stream))
     assert lines[0] == list(CSV_COLUMNS)
     assert lines[1:] == FIXTURE["D"]["rows"]
-
-
-def _pixels(path) -> np.ndarray:
-    with Image.open(path) as image:
-        assert image.mode == "RGB"
-        return np.asarray(image)
-
-
-def _count(pixels: np.ndarray, color) -> int:
-    return int((pixels == np.array(color, dtype=np.uint8)).all(axis=2).sum())
-
-
-@pytest.mark.parametrize("robot", ["DD", "H15"])
-def test_summary_png_shows_every_input_and_its_outcome(tmp_path, robot):
-    inputs = enumerate_inputs(robot, *SIGNS)
-    east = evaluate_inputs(always_east, inputs)
-    path = east.save_summary_png(tmp_path / "pictures" / "east.png")
-    pixels = _pixels(path)
-    height, width, _ = pixels.shape
-    assert width >= 800
-    assert height >= 900
-    assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20
-    legend = 200  # the legend's red and green arrows
-    # 105 wrong choices drawn as red arrows, 35 right ones as green arrows.
-    assert _count(pixels, WRONG) > legend + 105 * 40
-    assert _count(pixels, CORRECT) > legend + 35 * 40
-
-    perfect = evaluate_inputs(expected_policy(inputs), inputs)
-    pixels = _pixels(perfect.save_summary_png(tmp_path / "perfect.png", theme="dark"))
-    assert _count(pixels, CORRECT) > legend + 140 * 40
-    assert _count(pixels, WRONG) < legend
-
-
-def test_summary_png_grows_with_the_number_of_inputs(tmp_path):
-    small = evaluate_inputs(always_east, enumerate_inputs("DD", ["1"]))
-    large = evaluate_inputs(always_east, enumerate_inputs("DD", *MULTI))
-    a = _pixels(small.save_summary_png(tmp_path / "small.png"))
-    b = _pixels(large.save_summary_png(tmp_path / "large.png"))
-    assert b.shape[0] > a.shape[0] + 400
-    assert a.shape[1] == b.shape[1]
-
-
-def test_summary_png_rejects_a_bad_column_count(tmp_path):
-    result = evaluate_inputs(always_east, enumerate_inputs("DD", ["1"]))
-    with pytest.raises(InputRecognitionError, match="columns=0"):
-        result.save_summary_png(tmp_path / "x.png", columns=0)
-    with pytest.raises(ValueError, match="purple"):
-        result.save_summary_png(tmp_path / "x.png", theme="purple")

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from amaze.errors import MazeStringWarning
+from amaze.maze import rotations
 from amaze.maze.directions import Direction, direction_between
 from amaze.maze.maze import Maze, MazeClass
 from amaze.maze.spec import MazeSpec, StartLocation
@@ -26,6 +27,11 @@ def generate(text: str) -> Maze:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MazeStringWarning)
         return Maze.from_string(text)
+
+
+def rotated_mazes(maze: Maze) -> list[Maze]:
+    """The maze started from each corner (NW, NE, SW, SE), generated."""
+    return [Maze.from_string(text) for text in rotations(maze)]
 
 
 def walls_sha256(maze: Maze) -> str:
@@ -97,21 +103,34 @@ def test_canonical_string_regenerates_the_same_maze(fixture):
 )
 def test_all_rotations_match_reference(fixture):
     base = generate(fixture["input"])
-    rotations = base.all_rotations()
-    assert {r.path_length for r in rotations} == {base.path_length} or not base.spec.rotated
+    rotated = rotated_mazes(base)
+    assert {r.path_length for r in rotated} == {base.path_length} or not base.spec.rotated
     if base.spec.rotated and (base.width, base.height) != (base.spec.width, base.spec.height):
         # Reference bug (docs/reference-behaviour.md §2.6): it rotates a spec rebuilt
         # from the turned maze, i.e. with width and height swapped. Check the
-        # generator on that spec; our all_rotations() keeps the real base.
+        # generator on that spec; our rotations() keep the real base.
         swapped = base.spec.where(width=base.spec.height, height=base.spec.width)
-        rotations = [Maze.generate(spec) for spec in swapped.all_rotations()]
-    for rotation, ref in zip(rotations, fixture["all_rotations"], strict=True):
+        rotated = [Maze.generate(spec) for spec in swapped.all_rotations()]
+    for rotation, ref in zip(rotated, fixture["all_rotations"], strict=True):
         assert rotation.spec.start.name == ref["build_data_start"]
         assert walls_sha256(rotation) == ref["walls_sha256"]
         assert rotation.path_length == ref["path_length"]
         assert rotation.n_intersections == ref["intersections"]
         stats = rotation.stats()
         assert {**stats, "size": list(stats["size"])} == ref["stats"]
+
+
+def test_rotations_take_mazes_specs_and_strings():
+    text = "M4_10x10_C1"
+    expected = ["M4_10x10_NW_C1", "M4_10x10_NE_C1", "M4_10x10_C1", "M4_10x10_SE_C1"]
+    assert rotations(text) == expected
+    assert rotations(MazeSpec.from_string(text)) == expected
+    assert rotations(generate(text)) == expected
+    assert rotations([text, "M16_5x10_U"]) == [*expected, *rotations("M16_5x10_U")]
+    with pytest.raises(ValueError, match="at least one maze"):
+        rotations([])
+    with pytest.raises(ValueError, match="42"):
+        rotations([42])
 
 
 def test_primary_maze_table():
@@ -181,11 +200,11 @@ def test_traps_at_crossings_are_rotation_equivariant():
     """Our deterministic choice keeps the four rotations identical up to the turn."""
     for seed in range(40):
         base = generate(f"M{seed}_12x12_C1_t1_T.5")
-        rotations = base.all_rotations()
-        for rotation in rotations:
+        rotated = rotated_mazes(base)
+        for rotation in rotated:
             k = (int(rotation.spec.start) - int(StartLocation.SOUTH_WEST)) % 4
             turned = sorted((t.solution_index, (int(t.direction) - k) % 4) for t in rotation.traps)
-            reference = sorted((t.solution_index, int(t.direction)) for t in rotations[2].traps)
+            reference = sorted((t.solution_index, int(t.direction)) for t in rotated[2].traps)
             assert turned == reference
 
 

@@ -13,6 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from amaze.maze import rotations
 from amaze.maze.directions import direction_between
 from amaze.maze.maze import Maze
 from amaze.maze.metrics import (
@@ -49,6 +50,11 @@ def assert_reference_metrics(got: MazeMetrics, expected: dict[str, Any]) -> None
                 assert actual[key][sub] == pytest.approx(sub_value, abs=TOLERANCE), (key, sub)
         else:
             assert actual[key] == pytest.approx(value, abs=TOLERANCE), key
+
+
+def rotated_mazes(maze: Maze) -> list[Maze]:
+    """The maze started from each corner (NW, NE, SW, SE), generated."""
+    return [Maze.from_string(text) for text in rotations(maze)]
 
 
 def reference_rotation(maze: Maze, start: StartLocation) -> Maze:
@@ -96,17 +102,17 @@ def test_reference_rotation_metrics(text, start, rotation):
 @pytest.mark.parametrize("entry", REFERENCE_MAZES, ids=[e["input"] for e in REFERENCE_MAZES])
 def test_all_rotations_order_and_invariance(entry):
     maze = Maze.from_string(entry["input"])
-    rotations = maze.all_rotations()
+    rotated = rotated_mazes(maze)
     starts = [StartLocation[r["build_data_start"]] for r in entry["all_rotations"]]
-    assert [r.spec.start for r in rotations] == starts
+    assert [r.spec.start for r in rotated] == starts
     swapped = maze.width != maze.spec.width
     if not swapped:  # same base maze as the reference: its numbers, rotation by rotation
-        for rotated, expected in zip(rotations, entry["all_rotations"], strict=True):
-            assert_reference_metrics(compute_metrics(rotated), expected["metrics"])
+        for rotation, expected in zip(rotated, entry["all_rotations"], strict=True):
+            assert_reference_metrics(compute_metrics(rotation), expected["metrics"])
     if not maze.spec.rotated:  # R: each start generates a different maze
         return
     # Surprisingness and the paper's deceptiveness do not depend on the orientation.
-    values = [compute_metrics(r) for r in (maze, *rotations)]
+    values = [compute_metrics(r) for r in (maze, *rotated)]
     for field in ("surprisingness", "surprisingness_all", "invariant_deceptiveness"):
         first = getattr(values[0], field)
         assert all(getattr(v, field) == pytest.approx(first, abs=1e-12) for v in values), field
@@ -115,7 +121,7 @@ def test_all_rotations_order_and_invariance(entry):
 def test_reference_deceptiveness_depends_on_orientation():
     entry = next(e for e in REFERENCE_MAZES if e["input"].startswith("M20000018_"))
     published = [r["metrics"]["deceptiveness"] for r in entry["all_rotations"]]
-    ours = [deceptiveness(r) for r in Maze.from_string(entry["input"]).all_rotations()]
+    ours = [deceptiveness(r) for r in rotated_mazes(Maze.from_string(entry["input"]))]
     assert ours == pytest.approx(published, abs=TOLERANCE)
     assert len({round(value, 6) for value in ours}) == 4  # NW/NE/SW/SE all differ
     assert [round(v, 4) for v in ours] == [1.6927, 1.6985, 1.6855, 1.6716]
@@ -330,8 +336,8 @@ def maze_strings(draw) -> str:
 def test_orientation_invariance(text, start):
     maze = Maze.from_string(text, start=start)
     reference = compute_metrics(maze)
-    for rotated in maze.all_rotations():
-        metrics = compute_metrics(rotated)
+    for rotation in rotated_mazes(maze):
+        metrics = compute_metrics(rotation)
         assert metrics.surprisingness == pytest.approx(reference.surprisingness, abs=1e-12)
         assert metrics.surprisingness_all == pytest.approx(reference.surprisingness_all, abs=1e-12)
         assert metrics.invariant_deceptiveness == pytest.approx(

@@ -324,7 +324,7 @@ def test_grid_tiles_mazes_with_captions() -> None:
     assert luminance(custom.getpixel((1, 1))) < 60
     with pytest.raises(ValueError, match="2 labels for 3 mazes"):
         render_mazes_grid(mazes, columns=2, labels=["a", "b"])
-    with pytest.raises(ValueError, match="columns=0"):
+    with pytest.raises(ValueError, match="columns 0"):
         render_mazes_grid(mazes, columns=0)
     with pytest.raises(ValueError, match="at least one maze"):
         render_mazes_grid([], columns=2)
@@ -337,12 +337,12 @@ def test_grid_tiles_mazes_with_captions() -> None:
     ("overrides", "named"),
     [
         ({"theme": "blue"}, "'blue'"),
-        ({"cell_size": 3}, "cell_size=3"),
-        ({"cell_size": 2.5}, "cell_size=2.5"),
-        ({"cell_size": True}, "cell_size=True"),
-        ({"wall_width": 0}, "wall_width=0"),
+        ({"cell_size": 3}, "cell_size 3"),
+        ({"cell_size": 2.5}, "cell_size 2.5"),
+        ({"cell_size": True}, "cell_size True"),
+        ({"wall_width": 0}, "wall_width 0"),
         ({"cell_size": 10, "wall_width": 5}, "wall_width=5"),
-        ({"margin": -1}, "margin=-1"),
+        ({"margin": -1}, "margin -1"),
         ({"cell_size": 10, "wall_width": 4, "margin": 2}, "margin=2"),
         ({"solution": "yes"}, "solution='yes'"),
         ({"colour": "red"}, "'colour'"),

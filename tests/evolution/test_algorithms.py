@@ -12,22 +12,10 @@ import pytest
 from evolution import EvolutionConfigError
 from evolution.algorithms import ALGORITHMS, SearchAlgorithm, algorithm_class, make_algorithm
 from evolution.cmaes import CMAESAlgorithm, CMAESConfig
-from evolution.neat import Genome, NeatAlgorithm, NeatConfig
+from evolution.neat import NeatAlgorithm, NeatConfig
+from tests.evolution.neat.conftest import fingerprint
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def genes(genomes: list[Genome]) -> list[tuple]:
-    return [
-        (
-            tuple((n.id, n.kind, n.bias, n.activation) for n in g.nodes.values()),
-            tuple(
-                (c.innovation, c.in_node, c.out_node, c.weight, c.enabled)
-                for c in g.connections.values()
-            ),
-        )
-        for g in genomes
-    ]
 
 
 def test_the_registry_names_both_algorithms() -> None:
@@ -99,8 +87,8 @@ def test_make_algorithm_asks_what_the_class_asks_with_the_same_seed() -> None:
     options = {"population_size": 12, "image_connection_fraction": 0.1}
     built = make_algorithm("neat", options, "H5", 7).ask()
     direct = NeatAlgorithm(NeatConfig(**options), "H5", 7).ask()
-    assert genes(built) == genes(direct)
-    assert genes(built) != genes(make_algorithm("neat", options, "H5", 8).ask())
+    assert fingerprint(built) == fingerprint(direct)
+    assert fingerprint(built) != fingerprint(make_algorithm("neat", options, "H5", 8).ask())
 
 
 def test_no_algorithm_module_is_imported_before_it_is_asked_for() -> None:

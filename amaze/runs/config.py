@@ -1,0 +1,203 @@
+"""Run configs: dataclass fields, documented once, drive the config file and the command line.
+
+A trainer's config (``EvolveConfig``, ``TrainConfig``) subclasses
+:class:`RunConfig` and declares each field with :func:`option`::
+
+    budget_steps: int | None = option(3_000_000, "environment steps to spend")
+
+That one declaration gives the ``config.json`` key, the ``--budget-steps``
+command-line option with its type, choices and ``--help`` text, and the
+default. Values are checked in one place, the config's ``validate``, whether
+they come from a file, the command line or Python.
+
+A ``--config FILE.json`` holds either a whole config (every key a field) or,
+for convenience, only the options of the field named by
+:attr:`RunConfig.options_field` (the SB3 hyperparameters, the search
+algorithm's options); command-line options win over the file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import types
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar, TypeVar, Union
+
+from amaze.agents.robot import as_robot
+from amaze.errors import AmazeError
+from amaze.validation import check_integer
+
+__all__ = ["RunConfig", "config_from_dict", "option", "read_json_object"]
+
+_Config = TypeVar("_Config")
+_RunConfig = TypeVar("_RunConfig", bound="RunConfig")
+
+
+def option(
+    default: Any = dataclasses.MISSING,
+    help: str = "",
+    *,
+    default_factory: Any = dataclasses.MISSING,
+    choices: tuple[str, ...] | None = None,
+    command_line: bool = True,
+    metavar: str | None = None,
+) -> Any:
+    """A config field with its ``--help`` text (and choices, if any).
+
+    ``command_line=False`` keeps a field out of the command line (a nested
+    object such as the hyperparameters, set through ``--config``).
+    """
+    metadata = {"help": help, "choices": choices, "command_line": command_line, "metavar": metavar}
+    if default_factory is not dataclasses.MISSING:
+        return dataclasses.field(default_factory=default_factory, metadata=metadata)
+    return dataclasses.field(default=default, metadata=metadata)
+
+
+def config_from_dict(
+    cls: type[_Config], data: Any, error: type[ValueError], what: str = "config"
+) -> _Config:
+    """An instance of the config dataclass ``cls`` from a JSON object.
+
+    Missing keys take their defaults; a value that is not a mapping, or any
+    unknown key, raises ``error`` naming it (the fields' own checks are the
+    dataclass's business).
+    """
+    if not isinstance(data, Mapping):
+        raise error(f"a {what} must be a JSON object, not {data!r}")
+    unknown = sorted(set(data) - {f.name for f in dataclasses.fields(cls)})  # type: ignore[arg-type]
+    if unknown:
+        raise error(f"unknown {what} key(s): {', '.join(repr(k) for k in unknown)}")
+    return cls(**dict(data))
+
+
+def read_json_object(path: str | Path, error: type[ValueError], what: str = "config file") -> dict:
+    """The JSON object in the file ``path``; raise ``error`` naming the file otherwise."""
+    try:
+        loaded = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise error(f"{what} {str(path)!r} does not exist") from None
+    except IsADirectoryError:
+        raise error(f"{what} {str(path)!r} is a directory") from None
+    except (OSError, UnicodeDecodeError) as problem:
+        raise error(f"{what} {str(path)!r} cannot be read: {problem}") from None
+    except json.JSONDecodeError as problem:
+        raise error(f"{what} {str(path)!r} is not JSON: {problem}") from None
+    if not isinstance(loaded, dict):
+        raise error(f"{what} {str(path)!r} does not hold a JSON object")
+    return loaded
+
+
+def _option_type(annotation: Any) -> Any:
+    """The Python type behind ``int``, ``int | None``, ``list[str]``... (``None`` stripped)."""
+    if typing.get_origin(annotation) in (Union, types.UnionType):
+        kept = [a for a in typing.get_args(annotation) if a is not type(None)]
+        return _option_type(kept[0]) if len(kept) == 1 else str
+    return annotation
+
+
+def _comma_separated(text: str) -> list[str]:
+    return [item.strip() for item in text.split(",") if item.strip()]
+
+
+@dataclasses.dataclass
+class RunConfig:
+    """Base of the trainers' configs: ``config.json``, the command line and checks.
+
+    Subclasses are dataclasses whose fields are declared with :func:`option`
+    and whose :meth:`validate` checks (and normalises) every value, raising
+    :attr:`error` with a message naming the bad value.
+    """
+
+    #: The error class of the trainer (an :class:`~amaze.errors.AmazeError`).
+    error: ClassVar[type[AmazeError]] = AmazeError
+    #: The field a ``--config`` file of options alone fills (``None``: whole configs only).
+    options_field: ClassVar[str | None] = None
+
+    robot: str = option("DD", "robot: DD, a hybrid (H15) or a continuous (CC15) one")
+    seed: int = option(0, "seed of every random draw of the run")
+
+    def validate(self: _RunConfig) -> _RunConfig:
+        """Check every field; raise :attr:`error` naming the bad value. Returns ``self``.
+
+        Subclasses check their own fields and call this for the shared ones.
+        """
+        try:
+            self.robot = as_robot(self.robot).to_string()
+        except ValueError as problem:
+            raise self.error(f"robot {self.robot!r}: {problem}") from None
+        self.seed = check_integer("seed", self.seed, minimum=0, error=self.error)
+        return self
+
+    @classmethod
+    def from_dict(cls: type[_RunConfig], data: Any) -> _RunConfig:
+        """A checked config from a JSON object; unknown keys are errors."""
+        return config_from_dict(cls, data, cls.error).validate()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON object of ``config.json``."""
+        return dataclasses.asdict(self)
+
+    # -- the command line ---------------------------------------------------
+
+    @classmethod
+    def command_line_fields(cls) -> list[dataclasses.Field]:
+        """The fields that are command-line options, in declaration order."""
+        return [f for f in dataclasses.fields(cls) if f.metadata.get("command_line", False)]
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """Add ``--field-name`` for every command-line field, typed and documented."""
+        hints = typing.get_type_hints(cls)
+        for f in cls.command_line_fields():
+            kind = _option_type(hints[f.name])
+            flag = "--" + f.name.replace("_", "-")
+            default = f.default if f.default is not dataclasses.MISSING else None
+            help_text = f.metadata["help"]
+            if default is not None:
+                help_text = f"{help_text} (default: {default})"
+            kwargs: dict[str, Any] = {"help": help_text, "dest": f.name}
+            if f.metadata.get("metavar"):
+                kwargs["metavar"] = f.metadata["metavar"]
+            if kind is bool:
+                kwargs["action"] = argparse.BooleanOptionalAction
+            elif typing.get_origin(kind) is list:
+                kwargs["type"] = _comma_separated
+                kwargs.setdefault("metavar", "A,B,...")
+            else:
+                kwargs["type"] = kind
+                if f.metadata.get("choices"):
+                    kwargs["choices"] = f.metadata["choices"]
+            parser.add_argument(flag, **kwargs)
+
+    @classmethod
+    def from_file_and_arguments(
+        cls, args: argparse.Namespace, config_file: str | None
+    ) -> dict[str, Any]:
+        """The config's JSON object from ``--config FILE`` and the command-line options.
+
+        A file whose keys are all fields is a whole config; any other object
+        holds the options of :attr:`options_field`. Options given on the
+        command line win. The result is checked by :meth:`from_dict` later.
+        """
+        data: dict[str, Any] = {}
+        if config_file:
+            loaded = read_json_object(config_file, cls.error)
+            names = {f.name for f in dataclasses.fields(cls)}
+            if set(loaded) <= names or cls.options_field is None:
+                data = loaded
+            else:
+                data = {cls.options_field: loaded}
+        for f in cls.command_line_fields():
+            value = getattr(args, f.name, None)
+            if value is not None:
+                data[f.name] = value
+        return cls.adjust_command_line(data, args)
+
+    @classmethod
+    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+        """Hook: trainer-specific meaning of command-line combinations (default: none)."""
+        return data

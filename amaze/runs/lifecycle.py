@@ -1,0 +1,185 @@
+"""One run lifecycle for every trainer: start fresh, resume after a kill, report at the end.
+
+A trainer (``evolution.run.EvolutionRun``, ``rl_baselines.train.SB3Run``)
+subclasses :class:`Run` and writes only its own loop and its own state; the
+lifecycle around it is the same for all (``docs/architecture.md``, "Run
+folders"):
+
+* **fresh** (:meth:`Run.fresh`): check the config, refuse a folder that
+  already holds a run, set the trainer up (bad options fail here, before
+  anything is written), write ``config.json``, train, finish;
+* **resume** (:meth:`Run.resume`): read ``config.json``, restore the latest
+  checkpoint (or start over if there is none), drop the ``progress.csv`` rows
+  written after that checkpoint, train on, finish;
+* **finish** (:meth:`Run.finish`): the final agent on the standard evaluation
+  suite (the one evaluation protocol), its trajectories, the trainer's
+  pictures, and ``summary.json`` last: a run folder with a summary is a
+  finished run.
+
+Every file is written atomically (:mod:`amaze.runs.folder`), so a run killed at
+any moment leaves readable files behind and resumes from its last checkpoint.
+"""
+
+from __future__ import annotations
+
+import os
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+from amaze.agents.trajectories import save_trajectory_png
+from amaze.evaluation.policy import record_episode
+from amaze.evaluation.protocol import Evaluator
+from amaze.runs.config import RunConfig, read_json_object
+from amaze.runs.folder import ProgressLog, write_json
+
+__all__ = ["CONFIG_FILE", "SUMMARY_FILE", "Run", "RunResult"]
+
+CONFIG_FILE = "config.json"
+SUMMARY_FILE = "summary.json"
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A finished run: its folder, its final agent (a policy) and ``summary.json``'s content."""
+
+    out: Path
+    agent: Any
+    summary: dict[str, Any]
+
+    @property
+    def env_steps(self) -> int:
+        """Environment steps spent (the budget's unit)."""
+        return int(self.summary["env_steps"])
+
+    @property
+    def seconds(self) -> float:
+        """Wall-clock seconds spent training, over every resumed part of the run."""
+        return float(self.summary["seconds"])
+
+
+class Run(ABC):
+    """A training run in its folder; subclasses supply the trainer's part.
+
+    Class attributes say what the trainer's folder holds; the abstract
+    methods are the trainer's loop and state. Construct runs through
+    :meth:`fresh` and :meth:`resume`.
+    """
+
+    #: The trainer's config class (its ``error`` is raised for bad input).
+    config_class: ClassVar[type[RunConfig]]
+    #: The columns of ``progress.csv``.
+    progress_fields: ClassVar[tuple[str, ...]]
+    #: The ``progress.csv`` column that says how far the run was when a row was written.
+    position_field: ClassVar[str]
+    #: Files a finished run folder shows a user (printed by the command).
+    outputs: ClassVar[tuple[str, ...]] = ("summary.json", "progress.csv")
+
+    def __init__(self, out: str | os.PathLike, config: RunConfig) -> None:
+        self.out = Path(out)
+        self.config = config
+        self.progress = ProgressLog(self.out / "progress.csv", self.progress_fields)
+        self.checkpoints = self.out / "checkpoints"
+
+    # -- the trainer's part ---------------------------------------------------
+
+    @abstractmethod
+    def start(self) -> None:
+        """Set up a fresh run's state. Bad options fail here, before any file is written."""
+
+    @abstractmethod
+    def restore(self) -> int | None:
+        """Load the latest checkpoint; return its position (``position_field``), or ``None``."""
+
+    @abstractmethod
+    def train(self, progress_bar: bool) -> None:
+        """Spend the budget: the trainer's loop, logging progress and checkpointing."""
+
+    @abstractmethod
+    def final_agent(self) -> Any:
+        """The agent the run hands over (a policy of :mod:`amaze.evaluation.policy`)."""
+
+    @abstractmethod
+    def figures(self) -> dict[str, Any]:
+        """The trainer's entries of ``summary.json``: at least ``env_steps`` and ``seconds``."""
+
+    def trajectory_mazes(self) -> list[tuple[str, str]]:
+        """``(file stem, maze)`` of the episodes drawn into ``trajectories/``."""
+        return []
+
+    def extra_outputs(self) -> None:  # noqa: B027 (optional hook)
+        """Write the trainer's own pictures (called before ``summary.json`` is written)."""
+
+    @classmethod
+    def headline(cls, summary: Mapping[str, Any]) -> str:
+        """One line that sums a finished run up for the command line."""
+        recognition = summary.get("input_recognition")
+        return (
+            f"{summary['env_steps']} env steps, {summary['seconds']:.1f} s; standard suite:"
+            f" success {summary['success_rate']:.3f},"
+            f" normalized_reward {summary['normalized_reward']:.3f},"
+            f" input_recognition {'n/a' if recognition is None else f'{recognition:.3f}'}"
+        )
+
+    # -- the lifecycle ----------------------------------------------------------
+
+    @classmethod
+    def fresh(
+        cls,
+        config: RunConfig | Mapping[str, Any],
+        out: str | os.PathLike,
+        *,
+        progress_bar: bool = False,
+    ) -> RunResult:
+        """Start a run as ``config`` says in the folder ``out``, train it and finish it."""
+        if not isinstance(config, cls.config_class):
+            config = cls.config_class.from_dict(config)
+        config.validate()
+        path = Path(out)
+        if (path / CONFIG_FILE).exists():
+            raise config.error(f"{str(path)!r} already holds a run (use --resume)")
+        run = cls(path, config)
+        run.start()
+        path.mkdir(parents=True, exist_ok=True)
+        write_json(path / CONFIG_FILE, config.to_dict())
+        run.train(progress_bar)
+        return run.finish()
+
+    @classmethod
+    def resume(cls, out: str | os.PathLike, *, progress_bar: bool = False) -> RunResult:
+        """Continue the run in ``out`` from its latest checkpoint, then finish it."""
+        path = Path(out)
+        run = cls(path, cls.read_config(path))
+        position = run.restore()
+        if position is None:
+            run.start()
+            run.progress.keep(lambda row: False)
+        else:
+            run.progress.keep(lambda row: int(row[cls.position_field]) <= position)
+        run.train(progress_bar)
+        return run.finish()
+
+    @classmethod
+    def read_config(cls, path: Path) -> RunConfig:
+        """The checked config of the run in ``path``."""
+        error = cls.config_class.error
+        if not (path / CONFIG_FILE).is_file():
+            raise error(f"{str(path)!r} holds no run (no {CONFIG_FILE})")
+        data = read_json_object(path / CONFIG_FILE, error, "run config")
+        return cls.config_class.from_dict(data)
+
+    def finish(self) -> RunResult:
+        """The final agent on the standard suite, its trajectories, then ``summary.json``."""
+        agent = self.final_agent()
+        robot = self.config.robot
+        summary = Evaluator(robot).evaluate(agent).summary()
+        summary.update(self.figures())
+        for stem, maze in self.trajectory_mazes():
+            _, trajectory = record_episode(maze, robot, agent)
+            path = self.out / "trajectories" / f"{stem}.png"
+            save_trajectory_png(maze, trajectory, path, robot=robot, caption=True)
+        self.extra_outputs()
+        write_json(self.out / SUMMARY_FILE, summary)
+        return RunResult(self.out, agent, summary)

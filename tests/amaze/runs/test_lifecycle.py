@@ -78,7 +78,9 @@ class CountingRun(Run):
             if self.step == type(self).kill_at:
                 raise _Killed
             if self.step % 2 == 0:
-                write_json(self.checkpoints / "state.json", {"step": self.step, "total": self.total})
+                write_json(
+                    self.checkpoints / "state.json", {"step": self.step, "total": self.total}
+                )
 
     def final_agent(self) -> RandomController:
         return RandomController(self.config.robot, seed=self.config.seed)

@@ -53,7 +53,7 @@ _NETWORK_KEYS = ("hidden", "activation", "pool")
 #: cma options the algorithm sets itself (they may not be given in ``cma_options``).
 _RESERVED_OPTIONS = frozenset(
     "seed popsize CMA_diagonal randn verbose verb_log verb_disp verb_filenameprefix"
-    " verb_append verb_plot verb_time".split()
+    " verb_append verb_plot verb_time signals_filename".split()
 )
 #: Largest population accepted (a sanity bound; restarts may double it further).
 MAX_POPULATION = 1 << 16
@@ -87,17 +87,26 @@ class _GlobalRandn:
 
 
 def _json_value(name: str, value: Any) -> Any:
-    """``value`` if it is a plain JSON value (numbers, strings, booleans, None, lists of them)."""
+    """``value`` if it is a plain JSON value (numbers, booleans, None, lists of them).
+
+    Strings are refused: cma evaluates string option values as Python
+    expressions, so a string in a config file would be code that runs.
+    """
     if isinstance(value, list | tuple):
         return [_json_value(name, v) for v in value]
     if isinstance(value, np.generic):
         value = value.item()
-    if value is None or isinstance(value, bool | int | str):
+    if isinstance(value, str):
+        raise EvolutionConfigError(
+            f"CMA-ES config '{name}' is the string {value!r}: cma evaluates option strings"
+            " as Python code, so give the value itself (a number, a boolean or a list)"
+        )
+    if value is None or isinstance(value, bool | int):
         return value
     if isinstance(value, float) and math.isfinite(value):
         return value
     raise EvolutionConfigError(
-        f"CMA-ES config '{name}' must hold finite numbers, strings or booleans, got {value!r}"
+        f"CMA-ES config '{name}' must hold finite numbers or booleans, got {value!r}"
     )
 
 
@@ -327,12 +336,25 @@ class CMAESAlgorithm:
             "verb_log": 0,
             "verb_disp": 0,
             "verb_filenameprefix": "",
+            # cma reads options from a file of this name in the working directory at
+            # every iteration; a run depends on its config and seed alone.
+            "signals_filename": "",
         }
         with self._own_random():
             try:
                 return cma.CMAEvolutionStrategy(mean, self.config.sigma0, options)
             except (ValueError, TypeError) as error:
                 raise EvolutionConfigError(f"cma rejected the CMA-ES options: {error}") from None
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Restore a checkpoint, refusing cma options that cma would evaluate as code."""
+        self.__dict__.update(state)
+        for name, value in self._es.opts.items():
+            if isinstance(value, str) and value:
+                raise EvolutionConfigError(
+                    f"the CMA-ES strategy's option {name!r} holds the string {value!r}"
+                    " (cma evaluates option strings as code)"
+                )
 
     # -- interface ---------------------------------------------------------
 

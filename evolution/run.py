@@ -37,8 +37,10 @@ restart left).
   after the last one (``checkpoint_seconds: 0``: after every generation). A
   checkpoint of a CMA-ES run with a large population weighs megabytes, and
   fast generations take milliseconds: writing one every generation would
-  cost more than the evolution. It is a pickle: load only checkpoints you
-  wrote yourself;
+  cost more than the evolution. It is a pickle read back by a restricted
+  unpickler (:mod:`amaze.runs.checkpoint`, :data:`CHECKPOINT_ALLOWLIST`): a
+  file can only rebuild the classes of the run's own libraries, and reading
+  one runs no code from it;
 * ``champion.npz``: the best individual so far, an agent file of
   :mod:`evolution.agent_file` (no pickle; ``amaze run --controller champion.npz``);
 * ``summary.json``: the champion on the standard evaluation suite
@@ -61,7 +63,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import pickle
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -73,8 +74,9 @@ import numpy as np
 
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.maze import rotations
+from amaze.runs.checkpoint import Allowlist, read_checkpoint, write_checkpoint
 from amaze.runs.config import RunConfig, option
-from amaze.runs.folder import ProgressLog, write_bytes
+from amaze.runs.folder import ProgressLog
 from amaze.runs.lifecycle import Run, RunResult
 from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
@@ -86,7 +88,18 @@ __all__ = ["EvolutionRun", "EvolveConfig", "evolve", "resume"]
 
 PROGRESS_FIELDS = ("generation", "steps", "seconds", "best", "mean", "champion", "eval_seconds")
 #: Version of the checkpoint layout; a checkpoint of another version is refused.
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
+#: What an evolution checkpoint may name (:mod:`amaze.runs.checkpoint`): the
+#: classes of the run's own libraries and the few functions they keep as values.
+CHECKPOINT_ALLOWLIST = Allowlist.of(
+    names=(
+        "_operator:eq",  # deap's HallOfFame compares individuals with it
+        "cma.evolution_strategy:_pass",
+        "cma.options_parameters:is_feasible",
+        "numpy.linalg:eigh",
+    ),
+    class_prefixes=("evolution.", "amaze.", "cma.", "deap."),
+)
 
 
 @dataclass
@@ -192,12 +205,13 @@ class EvolutionRun(Run):
     config_class = EvolveConfig
     progress_fields = PROGRESS_FIELDS
     position_field = "generation"
+    checkpoint_files = ("state.pkl",)
     outputs = ("champion.npz", "summary.json", "progress.csv", "fitness.png")
     config: EvolveConfig
 
     def __init__(self, out: str | os.PathLike, config: EvolveConfig) -> None:
         super().__init__(out, config)
-        self.checkpoint = self.checkpoints / "state.pkl"
+        self.checkpoint = self.checkpoints / self.checkpoint_files[0]
         self.state: _State  # set by start() or restore()
         self.champion_fitness = -np.inf
 
@@ -219,18 +233,22 @@ class EvolutionRun(Run):
     def restore(self) -> int | None:
         if not self.checkpoint.exists():
             return None
-        state = pickle.loads(self.checkpoint.read_bytes())
-        if not isinstance(state, _State) or state.version != CHECKPOINT_VERSION:
+        state = read_checkpoint(
+            self.checkpoint, CHECKPOINT_ALLOWLIST, EvolutionConfigError, expected=_State
+        )
+        if state.version != CHECKPOINT_VERSION:
             raise EvolutionConfigError(
-                f"{str(self.checkpoint)!r} is not a checkpoint of this version"
+                f"checkpoint {str(self.checkpoint)!r} is of version {state.version!r},"
+                f" not {CHECKPOINT_VERSION}"
             )
+        champion_file = self.out / "champion.npz"
+        if champion_file.exists() or champion_file.is_symlink():
+            load_agent(champion_file)  # a damaged champion is refused here, by name
         self.state = state
         self.backend  # noqa: B018
         champion = state.algorithm.champion
         if champion is not None:
             self.champion_fitness = float(champion[1])
-        if state.generation and not (self.out / "champion.npz").exists():
-            self.save_champion()
         return state.generation
 
     def train(self, progress_bar: bool) -> None:
@@ -238,6 +256,8 @@ class EvolutionRun(Run):
         from tqdm import tqdm
 
         c = self.config
+        if self.state.generation and not (self.out / "champion.npz").exists():
+            self.save_champion()  # a champion lost after the checkpoint is written again
         if c.budget_steps is not None:
             total, unit = c.budget_steps, "steps"
         elif c.budget_seconds is not None:
@@ -371,7 +391,7 @@ class EvolutionRun(Run):
         )
 
     def save_checkpoint(self) -> None:
-        write_bytes(self.checkpoint, pickle.dumps(self.state, protocol=pickle.HIGHEST_PROTOCOL))
+        write_checkpoint(self.checkpoint, self.state)
 
     def _done(self) -> float:
         """How much of the budget the progress bar counts is spent (steps, else seconds)."""

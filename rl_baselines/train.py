@@ -51,7 +51,6 @@ run is a faithful continuation, not a bit-identical replay.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Mapping
@@ -67,12 +66,12 @@ from amaze.curriculum.regimes import REGIMES, regime_stages, stage_end
 from amaze.evaluation.protocol import Evaluator
 from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
 from amaze.maze import rotations
-from amaze.runs.config import RunConfig, option
+from amaze.runs.config import RunConfig, option, read_json_object
 from amaze.runs.folder import write_json
 from amaze.runs.lifecycle import Run, RunResult
-from amaze.validation import check_integer
+from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
-from rl_baselines.agent import SB3Agent, algorithm_class
+from rl_baselines.agent import SB3Agent, algorithm_class, load_sb3_model
 from rl_baselines.networks import small_cnn_kwargs
 from rl_baselines.vec_env import SB3VecEnv
 
@@ -120,10 +119,86 @@ class TrainConfig(RunConfig):
             raise RLConfigError(f"n_envs {self.n_envs} is not a multiple of 4 (one per rotation)")
         if not isinstance(self.hyperparameters, dict):
             raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
-        for reserved in ("env", "seed", "policy"):
-            if reserved in self.hyperparameters:
-                raise RLConfigError(f"hyperparameter {reserved!r} is set by the trainer")
+        _check_hyperparameters(self.algo, self.hyperparameters)
         return self
+
+
+#: Hyperparameters the trainer sets itself.
+_RESERVED = frozenset(
+    {"policy", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
+)
+#: Integer hyperparameters that SB3 needs to be at least 1.
+_POSITIVE = frozenset({"n_steps", "batch_size", "n_epochs"})
+
+
+def _check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:
+    """Each hyperparameter is one of the algorithm's, of the type of its SB3 default.
+
+    SB3 checks some values with ``assert`` and others only when training
+    starts (a string learning rate fails deep inside torch); checking the
+    types here gives one clear error, naming the value, before the run starts.
+    """
+    import inspect
+
+    defaults = {
+        name: parameter.default
+        for name, parameter in inspect.signature(algorithm_class(algo).__init__).parameters.items()
+    }
+    for name, value in hyperparameters.items():
+        what = f"hyperparameter {name!r}"
+        if name in _RESERVED:
+            raise RLConfigError(f"{what} is set by the trainer")
+        if name not in defaults or name == "self":
+            raise RLConfigError(f"{what} is not one of {algo.upper()}'s")
+        default = defaults[name]
+        if name.endswith("_class"):
+            raise RLConfigError(f"{what} names a class, which a config file cannot give")
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise RLConfigError(f"{what} {value!r} is not true or false")
+        elif isinstance(default, int):
+            check_integer(
+                what, value, minimum=1 if name in _POSITIVE else None, error=RLConfigError
+            )
+        elif isinstance(default, float) or (default is None and not name.endswith("kwargs")):
+            if value is not None or default is not None:
+                check_number(what, value, error=RLConfigError)
+        elif default is None and value is not None and not isinstance(value, dict):
+            raise RLConfigError(f"{what} {value!r} is not a JSON object")
+
+
+def _checked_state(state: dict[str, Any]) -> dict[str, Any]:
+    """``checkpoints/state.json``'s content with every field checked (types and ranges)."""
+
+    def integer(name: str, minimum: int, nullable: bool = False) -> int | None:
+        value = state.get(name)
+        if nullable and value is None:
+            return None
+        return check_integer(
+            f"checkpoint state {name}", value, minimum=minimum, error=RLConfigError
+        )
+
+    best = state.get("best")
+    if best is not None and not (
+        isinstance(best, list)
+        and len(best) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in best)
+    ):
+        raise RLConfigError(f"checkpoint state best {best!r} is not null or two numbers")
+    if not isinstance(state.get("converged"), bool):
+        raise RLConfigError(f"checkpoint state converged {state.get('converged')!r} is not a bool")
+    seconds = check_number(
+        "checkpoint state seconds", state.get("seconds"), minimum=0, error=RLConfigError
+    )
+    return {
+        "num_timesteps": integer("num_timesteps", 0),
+        "seconds": seconds,
+        "best": best,
+        "converged": state["converged"],
+        "last_eval_steps": integer("last_eval_steps", -1),
+        "stage": integer("stage", 0),
+        "stage_end": integer("stage_end", 0, nullable=True),
+    }
 
 
 class _EvaluationCallback(BaseCallback):
@@ -181,6 +256,7 @@ class SB3Run(Run):
     config_class = TrainConfig
     progress_fields = PROGRESS_FIELDS
     position_field = "steps"
+    checkpoint_files = ("model.zip", "state.json")
     outputs = ("champion.zip", "summary.json", "progress.csv", "tensorboard/")
     config: TrainConfig
 
@@ -225,29 +301,42 @@ class SB3Run(Run):
             self.model = algorithm_class(config.algo)(
                 policy, self._env(0), seed=config.seed, device="cpu", verbose=0, **kwargs
             )
-        except TypeError as error:  # bad hyperparameters fail here, before any file is written
+        except (TypeError, ValueError, AssertionError) as error:  # before any file is written
             raise RLConfigError(f"bad hyperparameters for {config.algo}: {error}") from None
 
     def restore(self) -> int | None:
-        """The SB3 model and the evaluation state of the last checkpoint."""
+        """The SB3 model and the evaluation state of the last checkpoint, checked."""
         model_file, state_file = self.checkpoints / "model.zip", self.checkpoints / "state.json"
-        if not (model_file.exists() and state_file.exists()):
+        present = [f for f in (model_file, state_file) if f.exists() or f.is_symlink()]
+        if not present:
             return None
-        state = json.loads(state_file.read_text())
-        self.seconds_before = float(state["seconds"])
-        self.best = tuple(state["best"]) if state["best"] is not None else None
-        self.converged = bool(state["converged"])
-        self.last_eval_steps = int(state["last_eval_steps"])
-        self.stage = int(state["stage"])
-        self.stage_end = state["stage_end"]
-        self.started = time.monotonic()
-        self.model = algorithm_class(self.config.algo).load(
+        if len(present) == 1:
+            missing = state_file if present[0] == model_file else model_file
+            raise RLConfigError(f"checkpoint file {str(missing)!r} is missing")
+        state = _checked_state(read_json_object(state_file, RLConfigError, "checkpoint file"))
+        if state["stage"] >= len(self.stages):
+            raise RLConfigError(
+                f"checkpoint file {str(state_file)!r}: stage {state['stage']} is not one of the"
+                f" {len(self.stages)} stages of the {self.config.regime} regime"
+            )
+        self.model = load_sb3_model(
             model_file,
-            env=self._env(self.stage),
-            device="cpu",
+            self.config.algo,
+            self.config.robot,
+            env=self._env(state["stage"]),
             tensorboard_log=self._tensorboard_dir(),
         )
-        self.model.num_timesteps = int(state["num_timesteps"])
+        champion = [self.out / "champion.zip", self.out / "champion.json"]
+        if any(f.exists() or f.is_symlink() for f in champion):
+            SB3Agent.load(champion[0])  # a damaged champion is refused here, by name
+        self.seconds_before = state["seconds"]
+        self.best = tuple(state["best"]) if state["best"] is not None else None
+        self.converged = state["converged"]
+        self.last_eval_steps = state["last_eval_steps"]
+        self.stage = state["stage"]
+        self.stage_end = state["stage_end"]
+        self.started = time.monotonic()
+        self.model.num_timesteps = state["num_timesteps"]
         return self.model.num_timesteps
 
     def train(self, progress_bar: bool) -> None:

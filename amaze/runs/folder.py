@@ -67,6 +67,52 @@ class ProgressLog:
         with self.path.open(newline="") as stream:
             return list(csv.DictReader(stream))
 
+    def checked_rows(self, position_field: str, error: type[ValueError]) -> list[dict[str, str]]:
+        """Every row, after checking the file is this log; raise ``error`` naming it otherwise.
+
+        The header must be :attr:`fields`, every row must have one value per
+        column and an integer ``position_field`` that never decreases. A last
+        line without its newline is a row torn by a kill during the write: it
+        is left out (it was written after the last checkpoint).
+        """
+        where = repr(str(self.path))
+        if not self.path.exists():
+            return []
+        try:
+            text = self.path.read_bytes().decode("utf-8")
+        except IsADirectoryError:
+            raise error(f"progress log {where} is a directory") from None
+        except UnicodeDecodeError:
+            raise error(f"progress log {where} is not text") from None
+        lines = text.splitlines(keepends=True)
+        if lines and not lines[-1].endswith("\n"):
+            lines.pop()
+        records = list(csv.reader(lines))
+        if not records or tuple(records[0]) != self.fields:
+            raise error(
+                f"progress log {where} does not start with the header {','.join(self.fields)}"
+            )
+        rows, last = [], None
+        for number, values in enumerate(records[1:], start=2):
+            if len(values) != len(self.fields):
+                raise error(
+                    f"progress log {where}, line {number}:"
+                    f" {len(values)} values, not {len(self.fields)}"
+                )
+            row = dict(zip(self.fields, values, strict=True))
+            try:
+                position = int(row[position_field])
+            except ValueError:
+                raise error(
+                    f"progress log {where}, line {number}: {position_field} {row[position_field]!r}"
+                    " is not an integer"
+                ) from None
+            if last is not None and position < last:
+                raise error(f"progress log {where}, line {number}: {position_field} goes back")
+            rows.append(row)
+            last = position
+        return rows
+
     def keep(self, predicate: Callable[[dict[str, str]], bool]) -> None:
         """Rewrite the log (atomically) with only the rows ``predicate`` accepts."""
         if not self.path.exists():

@@ -5,12 +5,16 @@ subclasses :class:`Run` and writes only its own loop and its own state; the
 lifecycle around it is the same for all (``docs/architecture.md``, "Run
 folders"):
 
-* **fresh** (:meth:`Run.fresh`): check the config, refuse a folder that
-  already holds a run, set the trainer up (bad options fail here, before
-  anything is written), write ``config.json``, train, finish;
-* **resume** (:meth:`Run.resume`): read ``config.json``, restore the latest
-  checkpoint (or start over if there is none), drop the ``progress.csv`` rows
-  written after that checkpoint, train on, finish;
+* **fresh** (:meth:`Run.fresh`): check the config, refuse a folder that is
+  not new or empty (one that holds a run, or anything else: nothing in it is
+  touched), set the trainer up (bad options fail here, before anything is
+  written), write ``config.json``, train, finish;
+* **resume** (:meth:`Run.resume`): read ``config.json``, check
+  ``progress.csv`` and restore the latest checkpoint (the trainer checks its
+  own files), refusing any damaged or inconsistent file by name before
+  anything changes; then drop the ``progress.csv`` rows written after that
+  checkpoint (or start over if the run was killed before its first one),
+  train on, finish;
 * **finish** (:meth:`Run.finish`): the final agent on the standard evaluation
   suite (the one evaluation protocol), its trajectories, the trainer's
   pictures, and ``summary.json`` last: a run folder with a summary is a
@@ -74,6 +78,8 @@ class Run(ABC):
     progress_fields: ClassVar[tuple[str, ...]]
     #: The ``progress.csv`` column that says how far the run was when a row was written.
     position_field: ClassVar[str]
+    #: The files of a checkpoint, in ``checkpoints/``.
+    checkpoint_files: ClassVar[tuple[str, ...]]
     #: Files a finished run folder shows a user (printed by the command).
     outputs: ClassVar[tuple[str, ...]] = ("summary.json", "progress.csv")
 
@@ -91,7 +97,12 @@ class Run(ABC):
 
     @abstractmethod
     def restore(self) -> int | None:
-        """Load the latest checkpoint; return its position (``position_field``), or ``None``."""
+        """Load the latest checkpoint; return its position (``position_field``), or ``None``.
+
+        Check every file the trainer owns (checkpoint, champion) and raise the
+        config's error naming a bad one; write nothing (the lifecycle changes
+        the folder only once all its files are known to be good).
+        """
 
     @abstractmethod
     def train(self, progress_bar: bool) -> None:
@@ -138,8 +149,7 @@ class Run(ABC):
             config = cls.config_class.from_dict(config)
         config.validate()
         path = Path(out)
-        if (path / CONFIG_FILE).exists():
-            raise config.error(f"{str(path)!r} already holds a run (use --resume)")
+        cls._check_new_folder(path, config.error)
         run = cls(path, config)
         run.start()
         path.mkdir(parents=True, exist_ok=True)
@@ -152,23 +162,54 @@ class Run(ABC):
         """Continue the run in ``out`` from its latest checkpoint, then finish it."""
         path = Path(out)
         run = cls(path, cls.read_config(path))
+        error = run.config.error
+        # Every file is checked before anything in the folder changes.
+        rows = run.progress.checked_rows(cls.position_field, error)
         position = run.restore()
         if position is None:
+            if len(rows) > 1:  # more than a run killed before its first checkpoint writes
+                files = " and ".join(repr(str(run.checkpoints / f)) for f in cls.checkpoint_files)
+                raise error(
+                    f"{str(run.progress.path)!r} has {len(rows)} rows but the checkpoint"
+                    f" {files} is missing: resuming would lose them"
+                )
             run.start()
             run.progress.keep(lambda row: False)
         else:
+            if not any(int(row[cls.position_field]) == position for row in rows):
+                raise error(
+                    f"{str(run.progress.path)!r} has no row at {cls.position_field} {position},"
+                    " where the checkpoint is"
+                )
             run.progress.keep(lambda row: int(row[cls.position_field]) <= position)
         run.train(progress_bar)
         return run.finish()
+
+    @staticmethod
+    def _check_new_folder(path: Path, error: type[ValueError]) -> None:
+        """A new run goes into a new or empty folder; anything else is refused untouched."""
+        if path.is_dir():
+            if (path / CONFIG_FILE).exists():
+                raise error(f"{str(path)!r} already holds a run (use --resume)")
+            if any(path.iterdir()):
+                raise error(
+                    f"{str(path)!r} is not empty and holds no run: give a new or empty folder"
+                )
+        elif path.exists() or path.is_symlink():
+            raise error(f"{str(path)!r} exists and is not a folder")
 
     @classmethod
     def read_config(cls, path: Path) -> RunConfig:
         """The checked config of the run in ``path``."""
         error = cls.config_class.error
-        if not (path / CONFIG_FILE).is_file():
+        config_file = path / CONFIG_FILE
+        if not (config_file.exists() or config_file.is_symlink()):
             raise error(f"{str(path)!r} holds no run (no {CONFIG_FILE})")
-        data = read_json_object(path / CONFIG_FILE, error, "run config")
-        return cls.config_class.from_dict(data)
+        data = read_json_object(config_file, error, "run config")
+        try:
+            return cls.config_class.from_dict(data)
+        except error as problem:
+            raise error(f"run config {str(config_file)!r}: {problem}") from None
 
     def finish(self) -> RunResult:
         """The final agent on the standard suite, its trajectories, then ``summary.json``."""

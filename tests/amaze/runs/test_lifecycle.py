@@ -9,7 +9,9 @@ next checkpoint, which is what a real kill leaves behind.
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -54,6 +56,7 @@ class CountingRun(Run):
     config_class = CountingConfig
     progress_fields = ("step", "total")
     position_field = "step"
+    checkpoint_files = ("state.json",)
     outputs = ("summary.json", "progress.csv")
     #: Raise after writing this step's row (before its checkpoint): a kill.
     kill_at: ClassVar[int | None] = None
@@ -264,3 +267,21 @@ def test_adjust_command_line_hook_sees_the_arguments() -> None:
         "verbose": True,
         "factor": 0.5,
     }
+
+
+@pytest.mark.parametrize(
+    ("code", "words"),
+    [(errno.EROFS, "Read-only file system"), (errno.ENOSPC, "No space left on device")],
+)
+def test_an_unwritable_disk_is_one_error_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys, code: int, words: str
+) -> None:
+    import amaze.runs.folder
+
+    def refuse(path, data):
+        raise OSError(code, os.strerror(code), str(path))
+
+    monkeypatch.setattr(amaze.runs.folder, "write_bytes", refuse)
+    assert COMMAND.main(["--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {words}: ") and "config.json" in err[0]

@@ -1,0 +1,215 @@
+"""``amaze-evolve --resume`` on damaged run folders: one ``error:`` line naming the file, exit 2,
+and nothing in the folder changed (every file is checked before anything is written).
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evolution.cli import main
+from evolution.run import EvolveConfig, _State, evolve
+
+CONFIG = {
+    "algo": "cmaes",
+    "mazes": ["M0_5x5_U", "M1_5x5_C1"],
+    "budget_steps": None,
+    "max_generations": 3,
+    "checkpoint_seconds": 0,
+    "algorithm": {"population_size": 6},
+}
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("evolve") / "run"
+    evolve(CONFIG, out)
+    (out / "summary.json").unlink()  # as if killed after its last checkpoint
+    return out
+
+
+def _snapshot(folder: Path) -> dict[str, bytes | None]:
+    return {
+        str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None)
+        for p in sorted(folder.rglob("*"))
+    }
+
+
+class _Payload:
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (Path.touch, (self.marker,))
+
+
+def _write(content: bytes) -> Callable[[Path], None]:
+    return lambda path: path.write_bytes(content)
+
+
+def _truncate(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: max(1, path.stat().st_size // 2)])
+
+
+def _directory(path: Path) -> None:
+    path.unlink()
+    path.mkdir()
+    (path / "inside").write_text("x")
+
+
+def _missing(path: Path) -> None:
+    path.unlink()
+
+
+def _edit_csv(change: Callable[[list[str]], list[str]]) -> Callable[[Path], None]:
+    def edit(path: Path) -> None:
+        lines = path.read_text().splitlines()
+        path.write_text("\n".join(change(lines)) + "\n")
+
+    return edit
+
+
+def _old_version(path: Path) -> None:
+    state = _State(algorithm=None, version=1)
+    path.write_bytes(pickle.dumps(state))
+
+
+RANDOM = bytes(np.random.default_rng(0).integers(0, 256, 512, dtype=np.uint8))
+
+CASES = {
+    # config.json
+    "config missing": ("config.json", _missing, "holds no run"),
+    "config empty": ("config.json", _write(b""), "is not JSON"),
+    "config truncated": ("config.json", _truncate, "is not JSON"),
+    "config random bytes": ("config.json", _write(RANDOM), "cannot be read"),
+    "config directory": ("config.json", _directory, "is a directory"),
+    "config not an object": ("config.json", _write(b"[1, 2]"), "does not hold a JSON object"),
+    "config wrong type": ("config.json", _write(b'{"seed": "zero"}'), "seed 'zero'"),
+    "config unknown key": ("config.json", _write(b'{"colour": 1}'), "'colour'"),
+    # progress.csv
+    "progress missing": ("progress.csv", _missing, "no row at generation 3"),
+    "progress empty": ("progress.csv", _write(b""), "header"),
+    "progress truncated": ("progress.csv", _truncate, "progress.csv"),
+    "progress random bytes": ("progress.csv", _write(RANDOM), "not text"),
+    "progress directory": ("progress.csv", _directory, "is a directory"),
+    "progress wrong header": (
+        "progress.csv",
+        _edit_csv(lambda lines: ["gen,steps", *lines[1:]]),
+        "header",
+    ),
+    "progress garbage row": (
+        "progress.csv",
+        _edit_csv(lambda lines: [*lines, "garbage"]),
+        "1 values",
+    ),
+    "progress bad generation": (
+        "progress.csv",
+        _edit_csv(lambda lines: [lines[0], "x" + lines[1][1:], *lines[2:]]),
+        "generation 'x'",
+    ),
+    "progress going back": (
+        "progress.csv",
+        _edit_csv(lambda lines: [lines[0], lines[2], lines[1], lines[3]]),
+        "goes back",
+    ),
+    # checkpoints/state.pkl
+    "checkpoint missing": ("checkpoints/state.pkl", _missing, "is missing"),
+    "checkpoint empty": ("checkpoints/state.pkl", _write(b""), "is empty"),
+    "checkpoint truncated": ("checkpoints/state.pkl", _truncate, "is damaged"),
+    "checkpoint random bytes": ("checkpoints/state.pkl", _write(RANDOM), "is damaged"),
+    "checkpoint directory": ("checkpoints/state.pkl", _directory, "is a directory"),
+    "checkpoint wrong type": (
+        "checkpoints/state.pkl",
+        _write(pickle.dumps({"generation": 3})),
+        "does not hold a _State",
+    ),
+    "checkpoint old version": ("checkpoints/state.pkl", _old_version, "version 1"),
+    # champion.npz
+    "champion empty": ("champion.npz", _write(b""), "champion.npz"),
+    "champion truncated": ("champion.npz", _truncate, "champion.npz"),
+    "champion random bytes": ("champion.npz", _write(RANDOM), "champion.npz"),
+    "champion directory": ("champion.npz", _directory, "champion.npz"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_a_damaged_file_is_refused_by_name_and_nothing_changes(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str
+) -> None:
+    name, damage, words = CASES[case]
+    out = tmp_path / "run"
+    shutil.copytree(finished_run, out)
+    damage(out / name)
+    before = _snapshot(out)
+    assert main(["--resume", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    assert Path(name).name in err[0] and words in err[0], err[0]
+    assert _snapshot(out) == before
+
+
+def test_a_checkpoint_with_a_code_payload_runs_nothing(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    shutil.copytree(finished_run, out)
+    marker = tmp_path / "marker"
+    (out / "checkpoints" / "state.pkl").write_bytes(pickle.dumps(_Payload(marker)))
+    before = _snapshot(out)
+    assert main(["--resume", str(out)]) == 2
+    assert "refused" in capsys.readouterr().err
+    assert not marker.exists() and _snapshot(out) == before
+
+
+def test_an_intact_folder_resumes(finished_run: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    shutil.copytree(finished_run, out)
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["generations"] == 3
+    assert EvolveConfig.from_dict(json.loads((out / "config.json").read_text())).algo == "cmaes"
+
+
+def test_a_lost_champion_is_written_again_from_the_checkpoint(
+    finished_run: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    shutil.copytree(finished_run, out)
+    (out / "champion.npz").unlink()
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    assert (out / "champion.npz").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("content", "words"),
+    [
+        ({"progress.csv": "generation,steps\n"}, "not empty and holds no run"),
+        ({"champion.npz": "old"}, "not empty and holds no run"),
+    ],
+)
+def test_a_folder_that_is_not_a_run_is_never_written_over(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: dict, words: str
+) -> None:
+    out = tmp_path / "old"
+    out.mkdir()
+    for name, text in content.items():
+        (out / name).write_text(text)
+    before = _snapshot(out)
+    argv = ["--mazes", "M0_5x5_U", "--max-generations", "1", "--out", str(out)]
+    assert main(argv) == 2
+    assert words in capsys.readouterr().err
+    assert _snapshot(out) == before
+
+
+def test_out_on_a_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    target = tmp_path / "file"
+    target.write_text("keep me")
+    assert main(["--mazes", "M0_5x5_U", "--max-generations", "1", "--out", str(target)]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+    assert target.read_text() == "keep me"

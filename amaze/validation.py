@@ -68,7 +68,10 @@ def check_number(
     """
     if isinstance(value, bool) or not isinstance(value, Real):
         raise error(f"{name} {value!r} is not a number")
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer too large for a float
+        number = math.inf if value > 0 else -math.inf
     if math.isnan(number) or (finite and math.isinf(number)):
         raise error(f"{name} {value!r} is not a finite number")
     low_ok = minimum is None or (number > minimum if strict_minimum else number >= minimum)

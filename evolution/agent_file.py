@@ -26,6 +26,7 @@ import json
 import os
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -53,6 +54,10 @@ FORMAT_VERSION = 1
 #: Name of the metadata entry in the archive (no array may use it).
 METADATA_KEY = "metadata"
 SUFFIX = ".npz"
+#: The first bytes of a zip archive (an .npz; the second, of an empty one), as numpy
+#: tells them, and of a single .npy array.
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+_NPY_MAGIC = b"\x93NUMPY"
 
 
 class AgentFileError(EvolutionConfigError, AmazeError):
@@ -151,8 +156,15 @@ def read_agent(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict[str
     """The arrays and the metadata of an agent file, checked (format, version, architecture)."""
     path = Path(path)
     if not path.is_file():
-        raise AgentFileError(f"agent file '{path}' does not exist")
+        what = "is not a file" if path.exists() else "does not exist"
+        raise AgentFileError(f"agent file '{path}' {what}")
     try:
+        with path.open("rb") as stream:
+            head = stream.read(len(_NPY_MAGIC))
+        if head == _NPY_MAGIC:
+            raise AgentFileError(f"agent file '{path}' holds a single array, not an .npz archive")
+        if not head.startswith(_ZIP_MAGIC):  # numpy would try it as a pickle, and refuse it
+            raise AgentFileError(f"agent file '{path}' is not a readable .npz archive: not a zip")
         archive = np.load(path, allow_pickle=False)
         if not isinstance(archive, np.lib.npyio.NpzFile):
             raise AgentFileError(f"agent file '{path}' holds a single array, not an .npz archive")
@@ -160,10 +172,22 @@ def read_agent(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict[str
             contents = {name: archive[name] for name in archive.files}
     except AgentFileError:
         raise
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as error:
+    except (
+        OSError,
+        ValueError,
+        EOFError,
+        KeyError,
+        RuntimeError,
+        NotImplementedError,
+        zipfile.BadZipFile,
+        zlib.error,
+    ) as error:
         raise AgentFileError(
             f"agent file '{path}' is not a readable .npz archive: {error}"
         ) from None
+    for name, value in contents.items():
+        if not isinstance(value, np.ndarray):  # numpy hands back the raw bytes of a non-.npy entry
+            raise AgentFileError(f"agent file '{path}': entry {name!r} is not a .npy array")
     if METADATA_KEY not in contents:
         raise AgentFileError(f"agent file '{path}' has no '{METADATA_KEY}' entry")
     raw = contents.pop(METADATA_KEY)
@@ -171,12 +195,12 @@ def read_agent(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict[str
         raise AgentFileError(f"agent file '{path}': '{METADATA_KEY}' is not a JSON string")
     try:
         metadata = json.loads(str(raw[()]))
-    except json.JSONDecodeError as error:
+    except (ValueError, RecursionError) as error:  # bad JSON, too deep, too many digits
         raise AgentFileError(f"agent file '{path}': metadata is not valid JSON ({error})") from None
     if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
         raise AgentFileError(f"agent file '{path}' is not an {FORMAT} file")
     version = metadata.get("version")
-    if version != FORMAT_VERSION:
+    if type(version) is not int or version != FORMAT_VERSION:
         raise AgentFileError(
             f"agent file '{path}' has format version {version!r}; this code reads version"
             f" {FORMAT_VERSION}"
@@ -214,9 +238,9 @@ def load_agent(path: str | os.PathLike) -> Any:
             )
         params = arrays.get("params")
         if params is None or params.shape != (spec.n_params,) or params.dtype.kind != "f":
-            shape = None if params is None else params.shape
+            found = "none" if params is None else f"{params.dtype} of shape {params.shape}"
             raise AgentFileError(
-                f"agent file '{path}': 'params' must be {spec.n_params} floats, got {shape}"
+                f"agent file '{path}': 'params' must be {spec.n_params} floats, got {found}"
             )
         try:
             return spec.population(params[None])

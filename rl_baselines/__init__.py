@@ -7,7 +7,8 @@ stable-baselines3, which are imported here and nowhere in :mod:`amaze`.
   environments together on the batch engine;
 * :mod:`rl_baselines.networks`: a small CNN features extractor for 15x15 images;
 * :mod:`rl_baselines.agent`: :class:`SB3Agent`, a trained model as a policy of the
-  shared protocol (``amaze.evaluation.policy``), with save/load;
+  shared protocol (``amaze.evaluation.policy``), with save/load; SB3 zips loaded
+  without unpickling (``load_sb3_model``);
 * :mod:`rl_baselines.train`: the training regimes with run folders, checkpoints and resume;
 * :mod:`rl_baselines.cli`: the ``amaze-train`` command.
 """

@@ -62,6 +62,9 @@ N_ACTIONS = 4
 ORACLE_GAIN = 8.0
 ORACLE_DAMPING = 6.0
 
+#: The largest float32: a Q-table's observations are stored as float32.
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
 TRAINING_METHODS: tuple[str, ...] = ("q_learning", "sarsa")
 #: Default learning rate and discount of :func:`train_tabular` (see there).
 TRAINING_ALPHA = 0.5
@@ -372,12 +375,12 @@ class TabularController:
             if not (
                 isinstance(entry, list)
                 and len(entry) == 2
-                and _numbers(entry[0], 8)
+                and _numbers(entry[0], 8, limit=_FLOAT32_MAX)
                 and _numbers(entry[1], N_ACTIONS)
             ):
                 raise ControllerError(
-                    f"{source}: q entry {n} {entry!r} is not [8 observation numbers,"
-                    f" {N_ACTIONS} finite values]"
+                    f"{source}: q entry {n} {entry!r} is not [8 observation numbers"
+                    f" (float32), {N_ACTIONS} finite values]"
                 )
             key = _key(np.array(entry[0], dtype=np.float32))
             if key in controller.q:
@@ -395,7 +398,7 @@ class TabularController:
             raise ControllerError(f"cannot read tabular controller '{path}': {error}") from None
         try:
             data = json.loads(text)
-        except json.JSONDecodeError as error:
+        except (ValueError, RecursionError) as error:  # bad JSON, too deep, too many digits
             raise ControllerError(f"'{path}' is not valid JSON: {error}") from None
         return cls.from_dict(data, source=f"'{path}'")
 
@@ -493,7 +496,8 @@ def make_controller(name: str, robot: Robot | str, *, seed: int = 0) -> Any:
     loader = _agent_loader(name) if isinstance(name, str) else None
     if loader is not None:
         if not Path(name).is_file():
-            raise ControllerError(f"agent file '{name}' does not exist")
+            what = "is not a file" if Path(name).exists() else "does not exist"
+            raise ControllerError(f"agent file '{name}' {what}")
         agent = loader(name)
         agent_robot = getattr(agent, "robot", None)
         if agent_robot is not None and as_robot(agent_robot) != robot:
@@ -541,13 +545,17 @@ def _check_action(action: Any) -> int:
     return direction
 
 
-def _numbers(values: Any, count: int) -> bool:
-    """Whether ``values`` is a list of ``count`` finite numbers (a Q-table file's entry)."""
+def _numbers(values: Any, count: int, limit: float | None = None) -> bool:
+    """Whether ``values`` is a list of ``count`` finite numbers (a Q-table file's entry).
+
+    ``limit`` bounds their magnitude (observations are stored as float32).
+    """
     if not isinstance(values, list) or len(values) != count:
         return False
+    low = None if limit is None else -limit
     try:
         for value in values:
-            check_number("value", value, error=ControllerError)
+            check_number("value", value, minimum=low, maximum=limit, error=ControllerError)
     except ControllerError:
         return False
     return True

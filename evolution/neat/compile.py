@@ -39,6 +39,7 @@ from numba import prange
 
 from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, as_robot
+from amaze.validation import check_integer
 from evolution import EvolutionConfigError
 
 __all__ = [
@@ -178,27 +179,80 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
     return arrays, architecture
 
 
-def _checked_arrays(
-    arrays: Mapping[str, np.ndarray], architecture: Mapping[str, Any]
-) -> dict[str, np.ndarray]:
-    """``arrays`` validated against ``architecture`` (user input: an agent file)."""
-    missing = [key for key in ARRAY_KEYS if key not in arrays]
-    if missing:
-        raise EvolutionConfigError(f"NEAT agent arrays lack {', '.join(missing)}")
+def _checked_architecture(architecture: Any) -> tuple[int, int, list[str]]:
+    """``n_inputs``, ``n_outputs`` and ``activations`` of a NEAT architecture, type-checked.
+
+    The architecture comes from a file's JSON metadata: every field is checked
+    (positive integers, a list of names; ``n_nodes`` and ``n_connections``, when
+    present, non-negative integers) and a bad one raises
+    :class:`~evolution.EvolutionConfigError` naming it.
+    """
+    if not isinstance(architecture, Mapping):
+        raise EvolutionConfigError(
+            f"NEAT agent architecture must be a JSON object, not {type(architecture).__name__}"
+        )
     for key in ("n_inputs", "n_outputs", "activations"):
         if key not in architecture:
             raise EvolutionConfigError(f"NEAT agent architecture lacks '{key}'")
-    n_inputs, n_outputs = int(architecture["n_inputs"]), int(architecture["n_outputs"])
+    n_inputs, n_outputs = (
+        check_integer(
+            f"NEAT agent architecture '{key}'",
+            architecture[key],
+            minimum=1,
+            error=EvolutionConfigError,
+        )
+        for key in ("n_inputs", "n_outputs")
+    )
+    for key in ("n_nodes", "n_connections"):
+        if key in architecture:
+            check_integer(
+                f"NEAT agent architecture '{key}'",
+                architecture[key],
+                minimum=0,
+                error=EvolutionConfigError,
+            )
+    names = architecture["activations"]
+    if not (isinstance(names, list) and names and all(isinstance(n, str) for n in names)):
+        raise EvolutionConfigError(
+            f"NEAT agent architecture 'activations' {names!r} is not a list of activation names"
+        )
+    return n_inputs, n_outputs, list(names)
+
+
+def _checked_arrays(
+    arrays: Mapping[str, np.ndarray], architecture: Mapping[str, Any]
+) -> dict[str, np.ndarray]:
+    """``arrays`` validated against ``architecture`` (user input: an agent file).
+
+    Every array must have its dtype kind (integers, or finite floats), be 1-d,
+    and agree with the others and with the architecture (sizes, CSR offsets,
+    feed-forward sources, output and activation indices); any fault raises
+    :class:`~evolution.EvolutionConfigError` naming the array or field.
+    """
+    n_inputs, n_outputs, names = _checked_architecture(architecture)
+    missing = [key for key in ARRAY_KEYS if key not in arrays]
+    if missing:
+        raise EvolutionConfigError(f"NEAT agent arrays lack {', '.join(missing)}")
     out = {key: np.asarray(arrays[key]) for key in ARRAY_KEYS}
     for key in ("node_ids", "activation", "indptr", "sources", "outputs"):
         if out[key].ndim != 1 or not np.issubdtype(out[key].dtype, np.integer):
             raise EvolutionConfigError(f"NEAT agent array '{key}' must be a 1-d integer array")
+        if out[key].dtype == np.uint64 and np.any(out[key] > np.iinfo(np.int64).max):
+            raise EvolutionConfigError(f"NEAT agent array '{key}' holds values out of range")
         out[key] = out[key].astype(np.int64)
     for key in ("bias", "weights"):
         if out[key].ndim != 1 or not np.issubdtype(out[key].dtype, np.floating):
             raise EvolutionConfigError(f"NEAT agent array '{key}' must be a 1-d float array")
         out[key] = out[key].astype(np.float64)
+        if not np.all(np.isfinite(out[key])):
+            raise EvolutionConfigError(f"NEAT agent array '{key}' holds non-finite values")
     n_nodes, n_edges = out["bias"].shape[0], out["weights"].shape[0]
+    for key, count in (("n_nodes", n_nodes), ("n_connections", n_edges)):
+        if key in architecture and architecture[key] != count:
+            raise EvolutionConfigError(
+                f"NEAT agent architecture '{key}' {architecture[key]} does not match the"
+                f" arrays ({count})"
+            )
     indptr = out["indptr"]
     if (
         out["activation"].shape[0] != n_nodes
@@ -219,7 +273,6 @@ def _checked_arrays(
     sources = out["sources"]
     if np.any((sources < 0) | ((sources >= n_inputs) & (sources - n_inputs >= target))):
         raise EvolutionConfigError("NEAT agent 'sources' are not in feed-forward order")
-    names = list(architecture["activations"])
     codes = out["activation"]
     if np.any((codes < 0) | (codes >= len(names))):
         raise EvolutionConfigError("NEAT agent 'activation' codes out of range")
@@ -496,20 +549,18 @@ def policy_from_arrays(
 ) -> GenomePopulation:
     """A population of one compiled genome (from :func:`genome_to_arrays`) for ``robot``.
 
-    It plays any number of agents, all with that genome. The arrays are
-    checked (they may come from an agent file): missing keys, inconsistent
+    It plays any number of agents, all with that genome. The architecture and
+    the arrays are checked (they may come from an agent file): a field of the
+    wrong type, missing keys, wrong dtypes, non-finite values, inconsistent
     sizes, connections that are not feed-forward or a robot that does not fit
     raise :class:`~evolution.EvolutionConfigError`.
     """
     robot = as_robot(robot)
     n_inputs, n_outputs = robot_io(robot)
-    if (int(architecture.get("n_inputs", -1)), int(architecture.get("n_outputs", -1))) != (
-        n_inputs,
-        n_outputs,
-    ):
+    stored_inputs, stored_outputs, _ = _checked_architecture(architecture)
+    if (stored_inputs, stored_outputs) != (n_inputs, n_outputs):
         raise EvolutionConfigError(
-            f"a NEAT agent with {architecture.get('n_inputs')} inputs and "
-            f"{architecture.get('n_outputs')} outputs does not fit robot {robot} "
-            f"({n_inputs} inputs, {n_outputs} outputs)"
+            f"a NEAT agent with {stored_inputs} inputs and {stored_outputs} outputs does not"
+            f" fit robot {robot} ({n_inputs} inputs, {n_outputs} outputs)"
         )
     return GenomePopulation([_checked_arrays(arrays, architecture)], robot)

@@ -59,5 +59,14 @@ def test_bad_numbers_name_the_value(value, kwargs, message):
         check_number("x", value, **kwargs)
 
 
+def test_integers_too_large_for_a_float_are_not_finite_numbers():
+    with pytest.raises(ValueError, match=r"is not a finite number$"):
+        check_number("x", 10**400)
+    with pytest.raises(ValueError, match=r"is not a finite number$"):
+        check_number("x", -(10**400), maximum=0)
+    assert check_number("x", 10**400, finite=False) == math.inf
+    assert check_number("x", -(10**400), finite=False) == -math.inf
+
+
 def test_infinity_is_accepted_only_when_asked():
     assert check_number("x", math.inf, minimum=0, finite=False) == math.inf

@@ -238,3 +238,111 @@ def test_loaded_agents_go_through_the_evaluation_protocol(tmp_path):
     direct = Evaluator("H7", mazes).evaluate(spec.population(params[None]))
     assert report.paper_reward == direct.paper_reward
     assert report.input_recognition == direct.input_recognition is not None
+
+
+def neat_arrays() -> tuple[dict[str, np.ndarray], dict]:
+    """The arrays and architecture of a grown DD genome (hidden nodes, several connections)."""
+    from evolution.neat import genome_to_arrays
+    from tests.evolution.neat.conftest import grown_genomes
+
+    return genome_to_arrays(grown_genomes("DD", count=1, steps=10, seed=3)[0])
+
+
+def neat_agent(path: Path, architecture: dict | None = None, **arrays: np.ndarray) -> Path:
+    """A NEAT agent file of :func:`neat_arrays`, its architecture or some arrays replaced."""
+    good, good_architecture = neat_arrays()
+    meta = {
+        "format": FORMAT,
+        "version": FORMAT_VERSION,
+        "robot": "DD",
+        "architecture": good_architecture if architecture is None else architecture,
+    }
+    return write_npz(path, meta, **{**good, **arrays})
+
+
+def neat_architecture(**changes: object) -> dict:
+    """The architecture of :func:`neat_arrays` with ``changes`` (``...`` removes a key)."""
+    architecture = {**neat_arrays()[1], **changes}
+    return {key: value for key, value in architecture.items() if value is not ...}
+
+
+def test_a_neat_agent_file_loads(tmp_path: Path) -> None:
+    """The files the checks below break are good ones to start with."""
+    agent = load_agent(neat_agent(tmp_path / "agent.npz"))
+    assert agent(np.zeros((3, 8), np.float32)).shape == (3,)
+
+
+@pytest.mark.parametrize(
+    ("architecture", "field"),
+    [
+        (neat_architecture(n_inputs=None), "'n_inputs' None"),
+        (neat_architecture(n_inputs=[8]), r"'n_inputs' \[8\]"),
+        (neat_architecture(n_inputs="8"), "'n_inputs' '8'"),
+        (neat_architecture(n_inputs=8.0), "'n_inputs' 8.0"),
+        (neat_architecture(n_inputs=True), "'n_inputs' True"),
+        (neat_architecture(n_outputs=None), "'n_outputs' None"),
+        (neat_architecture(n_outputs={"n": 4}), "'n_outputs'"),
+        (neat_architecture(activations=[0, 1, 2, 3, 4, 5]), "'activations'"),
+        (neat_architecture(activations="tanh"), "'activations' 'tanh'"),
+        (neat_architecture(activations=None), "'activations' None"),
+        (neat_architecture(activations=[]), "'activations'"),
+        (neat_architecture(activations=...), "lacks 'activations'"),
+        (neat_architecture(n_nodes="3"), "'n_nodes' '3'"),
+        (neat_architecture(n_nodes=10_000), "'n_nodes' 10000 does not match"),
+        (neat_architecture(n_connections=-1), "'n_connections' -1"),
+    ],
+)
+def test_neat_metadata_of_the_wrong_type_is_one_clear_error(
+    tmp_path: Path, architecture: dict, field: str
+) -> None:
+    path = neat_agent(tmp_path / "agent.npz", architecture)
+    with pytest.raises(AgentFileError, match=field) as caught:
+        load_agent(path)
+    assert "agent.npz" in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda a: {"bias": np.where(a["bias"] == a["bias"][0], np.nan, 0.0)}, "'bias' holds non"),
+        (lambda a: {"weights": np.full_like(a["weights"], np.inf)}, "'weights' holds non-finite"),
+        (lambda a: {"bias": a["bias"][None]}, "'bias' must be a 1-d float array"),
+        (lambda a: {"weights": a["weights"].astype(np.int64)}, "'weights' must be a 1-d float"),
+        (lambda a: {"outputs": a["outputs"].astype(float)}, "'outputs' must be a 1-d integer"),
+        (lambda a: {"activation": a["activation"] > 0}, "'activation' must be a 1-d integer"),
+        (
+            lambda a: {"sources": np.full(a["sources"].shape, 2**63, np.uint64)},
+            "'sources' holds values out of range",
+        ),
+        (lambda a: {"indptr": a["indptr"][:-1]}, "inconsistent sizes"),
+        (lambda a: {"outputs": a["outputs"] + len(a["bias"])}, "'outputs'"),
+    ],
+)
+def test_neat_arrays_of_the_wrong_kind_are_one_clear_error(
+    tmp_path: Path, change: object, field: str
+) -> None:
+    path = neat_agent(tmp_path / "agent.npz", **change(neat_arrays()[0]))
+    with pytest.raises(AgentFileError, match=field) as caught:
+        load_agent(path)
+    assert "agent.npz" in str(caught.value)
+
+
+def test_archive_entries_and_metadata_that_numpy_or_json_cannot_read_are_refused(
+    tmp_path: Path,
+) -> None:
+    raw = tmp_path / "raw.npz"
+    with zipfile.ZipFile(raw, "w") as archive:
+        archive.writestr("metadata", json.dumps(good_metadata()))
+        archive.writestr("params.npy", b"not an array")
+    deep = write_npz(tmp_path / "deep.npz", "[" * 100_000 + "]" * 100_000, params=np.zeros(36))
+    digits = write_npz(tmp_path / "digits.npz", '{"version": ' + "9" * 5000 + "}")
+    version = write_npz(tmp_path / "version.npz", good_metadata(version=True), params=np.zeros(36))
+    for path, message in [
+        (raw, "entry 'metadata' is not a .npy array"),
+        (deep, "not valid JSON"),
+        (digits, "not valid JSON"),
+        (version, "version True"),
+    ]:
+        with pytest.raises(AgentFileError, match=message) as caught:
+            load_agent(path)
+        assert path.name in str(caught.value)

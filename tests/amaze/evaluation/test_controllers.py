@@ -405,13 +405,29 @@ ENTRY = [[0, 1, 0.5, 1, 0, 0, 0, 0], [0.0, -1.0, 0.0, 0.0]]
         (json.dumps({**GOOD, "q": [ENTRY, [[0] * 7, [0] * 4]]}), "q entry 1"),
         (json.dumps({**GOOD, "q": [[ENTRY[0], [0, 0, "x", 0]]]}), "q entry 0"),
         (json.dumps({**GOOD, "q": [ENTRY, ENTRY]}), "repeated"),
+        ("[" * 100_000 + "]" * 100_000, "not valid JSON"),
+        ('{"seed": ' + "9" * 5000 + "}", "not valid JSON"),
+        (json.dumps({**GOOD, "q": [[ENTRY[0], [10**400, 0, 0, 0]]]}), "q entry 0"),
+        (json.dumps({**GOOD, "q": [[[1e300, *ENTRY[0][1:]], ENTRY[1]]]}), "q entry 0"),
+        ("", "not valid JSON"),
+        (json.dumps({**GOOD, "q": [ENTRY]})[:40], "not valid JSON"),
     ],
 )
 def test_tabular_load_rejects_bad_files(tmp_path: Path, content: str, message: str) -> None:
     path = tmp_path / "bad.json"
     path.write_text(content)
-    with pytest.raises(AmazeError, match=message):
+    with pytest.raises(ControllerError, match=message) as caught:
         TabularController.load(path)
+    assert "bad.json" in str(caught.value)
+
+
+def test_tabular_load_refuses_random_bytes_and_folders(tmp_path: Path) -> None:
+    (tmp_path / "random.json").write_bytes(bytes(range(256)))
+    (tmp_path / "folder.json").mkdir()
+    for name in ("random.json", "folder.json"):
+        with pytest.raises(ControllerError, match="cannot read tabular controller") as caught:
+            TabularController.load(tmp_path / name)
+        assert name in str(caught.value)
 
 
 def test_tabular_load_accepts_a_good_file_and_rejects_a_missing_one(tmp_path: Path) -> None:

@@ -25,6 +25,26 @@ class UsageError(AmazeError):
     """A mistake in a command line (an unknown option, a missing ``--out``...)."""
 
 
+class ActionError(AmazeError):
+    """An action given to an agent cannot be applied.
+
+    A discrete action that is not one of 0..3, a continuous action that is not
+    two real numbers per agent, or a continuous action holding a NaN or an
+    infinity: such a value is always a bug upstream (a diverged network, say),
+    which silently replacing it would hide. Finite accelerations outside the
+    action space [-1, 1] are not errors: they are clipped
+    (``docs/reference-behaviour.md`` §4.4).
+    """
+
+
+class OptionError(AmazeError):
+    """An option of a simulation, engine or environment is of the wrong type or out of range.
+
+    A deadline factor, a number of agents, reset options, a render mode...:
+    the message names the option and the value.
+    """
+
+
 class EpisodeEndedError(AmazeError):
     """An agent was stepped after its episode reached the goal or the deadline.
 

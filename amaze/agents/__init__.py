@@ -3,6 +3,8 @@
 Above the maze core, below environments and evaluation:
 
 * :mod:`~amaze.agents.robot`: robot strings (``DD``, ``H15``, ``CC15``);
+* :mod:`~amaze.agents.actions`: the continuous-action contract (clip to [-1, 1],
+  refuse NaN and infinities);
 * :mod:`~amaze.agents.observations`: discrete inputs and cell images;
 * :mod:`~amaze.agents.rewards`: the reference's rewards, ``pretty_reward`` and the paper's R̄;
 * :mod:`~amaze.agents.simulation`: one agent, the readable definition;

@@ -26,6 +26,18 @@ before touching any state and lists the episodes that ended in compact
 buffers, so that :meth:`BatchEngine.step` does little besides allocating the
 arrays it returns.
 
+Continuous actions follow :mod:`amaze.agents.actions`: finite accelerations are
+clipped to [-1, 1], a NaN or an infinity is refused (:class:`~amaze.errors.ActionError`,
+naming the agents), as in the readable ``Simulation``. The kernels never index
+outside their arrays whatever they are given, as a defence in depth should
+those checks be bypassed: they clip accelerations to [-1, 1] themselves and
+apply a non-finite one as 0, and clamp every cell coordinate computed from a
+position to the maze (and every window shift to the canvas). In the maze a
+robot moves less than its radius per step, so for legal actions the clamps
+change nothing but the one case where the reference indexed outside the maze
+too: a robot at full speed against the east or north border lands exactly on
+the border line. The guards cost a few comparisons per agent-step.
+
 Kernels come in a serial and a parallel (``prange``) version. A parallel step
 pays a thread start-up and a barrier on every call, which a small batch does
 not win back, and it stalls for a scheduler time slice (milliseconds) whenever
@@ -46,21 +58,33 @@ from typing import NoReturn, TypeVar
 import numba
 import numpy as np
 
+from amaze.agents.actions import continuous_actions, non_finite_actions_message
 from amaze.agents.rewards import (
     BACKWARD_PENALTY,
     COLLISION_PENALTY,
     DEFAULT_DEADLINE_FACTOR,
     RewardScheme,
+    check_deadline_factor,
     paper_reward,
     pretty_reward,
 )
 from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
 from amaze.agents.tables import MazeTables, compile_mazes
-from amaze.errors import EpisodeEndedError
+from amaze.errors import ActionError, EpisodeEndedError, OptionError
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 
-__all__ = ["BatchEngine", "EndedEpisodes", "EpisodeEndedError", "StepResult"]
+__all__ = [
+    "MAX_ENGINE_BYTES",
+    "BatchEngine",
+    "EndedEpisodes",
+    "EpisodeEndedError",
+    "StepResult",
+    "agent_bytes",
+    "check_n_agents",
+    "max_agents",
+]
 
 _Dataclass = TypeVar("_Dataclass")
 
@@ -86,6 +110,10 @@ _EP_AGENT, _EP_STEPS, _EP_COLL, _EP_BACK, _EP_LEN = range(5)
 _N_EP_INT = 5
 
 _INT64 = np.dtype(np.int64)
+
+#: The engine refuses a number of agents whose arrays (:func:`agent_bytes` each)
+#: would take more memory than this (16 GiB), before allocating anything.
+MAX_ENGINE_BYTES = 16 * 2**30
 
 # kernel status codes (a kernel returns the number of ended episodes, or one of these)
 _BAD_ACTION = -1
@@ -130,6 +158,54 @@ def _u(index):
 @numba.njit(cache=True, inline="always")
 def _wall(walls, off, h, i, j, d):
     return (walls[off + i * h + j] >> d) & 1
+
+
+@numba.njit(cache=True, inline="always")
+def _acceleration(a):
+    """An acceleration component as the kernels apply it: clipped to [-1, 1], 0 if not finite.
+
+    :meth:`BatchEngine.step` refuses non-finite actions before any kernel runs;
+    this is the kernels' own guard, so that whatever reaches them (a NaN, an
+    infinity, 1e308) can never move a robot out of its maze.
+    """
+    if a - a != 0.0:  # NaN or an infinity (x - x is 0 for every finite x)
+        return 0.0
+    if a > 1.0:
+        return 1.0
+    if a < -1.0:
+        return -1.0
+    return a
+
+
+@numba.njit(cache=True, inline="always")
+def _cell_index(x, n):
+    """``int(x)`` clamped to ``0 .. n - 1`` (0 for NaN): a cell coordinate inside the maze.
+
+    Positions stay inside the maze (the border walls hold the robot), but one
+    at full speed against the east or north border can round to exactly ``n``.
+    """
+    if x >= n:
+        return n - 1
+    if x >= 1.0:
+        return int(x)
+    return 0
+
+
+@numba.njit(cache=True, inline="always")
+def _window_shift(f, v):
+    """``int(f)`` clamped to ``[-v, v]`` (0 for NaN): how far a window moves, in pixels.
+
+    Inside its cell a robot shifts its window by at most ``v / 2`` pixels; the
+    canvas has a ``v`` pixel ring around the maze, so any clamped shift reads
+    inside the canvas.
+    """
+    if f >= v:
+        return v
+    if f > -v:
+        return int(f)
+    if f <= -v:
+        return -v
+    return 0
 
 
 @numba.njit(cache=True, inline="always")
@@ -189,6 +265,20 @@ def _check_discrete(actions, ended, auto_reset):
     bad = False
     for k in range(actions.shape[0]):
         bad |= (actions[k] < 0) | (actions[k] > 3)
+    if bad and status == 0:
+        return _BAD_ACTION
+    return status
+
+
+@numba.njit(cache=True, inline="always")
+def _check_continuous(actions, ended, auto_reset):
+    """0 when no ended agent is stepped and every acceleration is finite, else a status code."""
+    status = _check_ended(ended, auto_reset)
+    bad = False
+    for k in range(actions.shape[0]):
+        ax = actions[k, 0]
+        ay = actions[k, 1]
+        bad |= (ax - ax != 0.0) | (ay - ay != 0.0)
     if bad and status == 0:
         return _BAD_ACTION
     return status
@@ -284,12 +374,12 @@ def _observe_window(k, out, ist, fst, mint, canvas, canvas_off):
     m = ist[k, _MAZE]
     x = fst[k, _X]
     y = fst[k, _Y]
-    ci = int(x)
-    cj = int(y)
-    v = out.shape[1]
-    dpx = int((x - ci - 0.5) * v)
-    dpy = int((y - cj - 0.5) * v)
     h = mint[m, _H]
+    ci = _cell_index(x, mint[m, _W])
+    cj = _cell_index(y, h)
+    v = out.shape[1]
+    dpx = _window_shift((x - ci - 0.5) * v, v)
+    dpy = _window_shift((y - cj - 0.5) * v, v)
     cols = (mint[m, _W] + 2) * v
     r0 = (h - cj) * v - dpy
     c0 = (ci + 1) * v + dpx
@@ -315,8 +405,8 @@ def _continuous_move(k, ax, ay, ist, fst, mint, walls):
     w = mint[m, _W]
     h = mint[m, _H]
     dt = _DT_CONTINUOUS
-    accx = _ACC_SCALE * ax
-    accy = _ACC_SCALE * ay
+    accx = _ACC_SCALE * _acceleration(ax)
+    accy = _ACC_SCALE * _acceleration(ay)
     vx = _DAMPING * fst[k, _VX] + dt * accx
     vy = _DAMPING * fst[k, _VY] + dt * accy
     if np.sqrt(vx**2 + vy**2) < _MIN_SPEED:
@@ -328,8 +418,8 @@ def _continuous_move(k, ax, ay, ist, fst, mint, walls):
     y = fst[k, _Y] + dt * vy
     x_ = x
     y_ = y
-    i = int(x)
-    j = int(y)
+    i = _cell_index(x, w)
+    j = _cell_index(y, h)
     r = _RADIUS
     o_w = x - i <= r
     o_e = i + 1 - x <= r
@@ -384,13 +474,13 @@ def _continuous_move(k, ax, ay, ist, fst, mint, walls):
 def _continuous_step(k, ax, ay, ist, fst, mint, mflt, walls, rewards, term, trunc):
     """One continuous step of agent ``k`` (§4.4, §4.5); True when its episode ended."""
     collision = _continuous_move(k, ax, ay, ist, fst, mint, walls)
-    ni = int(fst[k, _X])
-    nj = int(fst[k, _Y])
+    m = ist[k, _MAZE]
+    ni = _cell_index(fst[k, _X], mint[m, _W])
+    nj = _cell_index(fst[k, _Y], mint[m, _H])
     ci = ist[k, _CI]
     cj = ist[k, _CJ]
     ppi = ist[k, _PI]
     ppj = ist[k, _PJ]
-    m = ist[k, _MAZE]
     tk = ist[k, _T]
     reward = 0.0
     if collision:
@@ -604,7 +694,7 @@ def _step_continuous(
     actions, ist, fst, ended, mint, mflt, walls, canvas, canvas_off, auto_reset,
     obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
 ):  # fmt: skip
-    status = _check_ended(ended, auto_reset)
+    status = _check_continuous(actions, ended, auto_reset)
     if status < 0:
         return status
     count = 0
@@ -627,7 +717,7 @@ def _step_continuous_parallel(
     actions, ist, fst, ended, mint, mflt, walls, canvas, canvas_off, auto_reset,
     obs, rewards, term, trunc, ep_int, ep_ret, ep_success, final_obs,
 ):  # fmt: skip
-    status = _check_ended(ended, auto_reset)
+    status = _check_continuous(actions, ended, auto_reset)
     if status < 0:
         return status
     for k in numba.prange(actions.shape[0]):
@@ -775,6 +865,56 @@ def threads_pay_off(work: int, min_work: int = _PARALLEL_MIN_WORK) -> bool:
     return load < (cores or 1) - 0.5
 
 
+def agent_bytes(robot: Robot | str) -> int:
+    """About how many bytes the engine uses per agent of ``robot``.
+
+    Its per-agent state (ten int32 and five float64 values, an "ended" flag), the
+    compact buffers of ended episodes and their copies in a step, one step's
+    actions, rewards and flags, and four observations: the buffer of last
+    observations, the observations a step returns, its copy of the last
+    observations of ended episodes, and those the caller still holds from the
+    previous step. An observation is 8 float32 (discrete inputs) or ``v x v``
+    bytes (images). Per-maze tables come on top but do not grow with agents.
+    """
+    robot = as_robot(robot)
+    observation = 8 * 4 if robot.discrete_inputs else int(robot.vision) ** 2
+    action = 8 if robot.discrete_outputs else 2 * 8
+    state = _N_ISTATE * 4 + _N_FSTATE * 8 + 1
+    ended_buffers = 2 * (_N_EP_INT * 8 + 8 + 1)
+    step = action + 8 + 1 + 1
+    return state + ended_buffers + step + 4 * observation
+
+
+def max_agents(robot: Robot | str) -> int:
+    """The largest number of agents of ``robot`` that one engine accepts.
+
+    So many that their arrays (:func:`agent_bytes` each) fit in
+    :data:`MAX_ENGINE_BYTES`: about 52 million ``DD``, 15 million ``CC15`` or
+    one million ``H65`` agents.
+    """
+    return MAX_ENGINE_BYTES // agent_bytes(robot)
+
+
+def check_n_agents(n_agents: object, robot: Robot | str, name: str = "n_agents") -> int:
+    """``n_agents`` as an ``int`` in ``1 .. max_agents(robot)``, else :class:`OptionError`.
+
+    Checked before anything is allocated: ``num_envs=10**12`` once asked numpy
+    for 36 TiB. ``name`` is the option's name in the message (``num_envs`` for
+    the vector environment).
+    """
+    robot = as_robot(robot)
+    n = check_integer(name, n_agents, minimum=1, error=OptionError)
+    limit = max_agents(robot)
+    if n > limit:
+        need = n * agent_bytes(robot) / 2**30
+        raise OptionError(
+            f"{name} {n} is too many for robot {robot}: the engine would need about"
+            f" {need:,.0f} GiB, more than its {MAX_ENGINE_BYTES // 2**30} GiB limit"
+            f" (at most {limit:,} agents)"
+        )
+    return n
+
+
 def _build(cls: type[_Dataclass], **fields: object) -> _Dataclass:
     """An instance of the frozen dataclass ``cls`` with exactly its ``fields``.
 
@@ -793,9 +933,15 @@ class BatchEngine:
     ``mazes`` may be mazes, specs or maze strings (generated once, here).
     Agent ``k`` runs in maze ``assignment[k]`` (default ``k % len(mazes)``).
     Discrete and hybrid robots take actions ``0..3`` (E, N, W, S), int (n,);
-    continuous robots take accelerations, float (n, 2), not clipped (as in the
-    reference). Observations are float32 (n, 8) for discrete robots and uint8
-    (n, v, v) images for hybrid and continuous ones.
+    continuous robots take accelerations, real numbers (n, 2), clipped to the
+    action space [-1, 1] (a NaN or an infinity is refused, see
+    :mod:`amaze.agents.actions`). Observations are float32 (n, 8) for discrete
+    robots and uint8 (n, v, v) images for hybrid and continuous ones.
+
+    ``n_agents`` is an integer from 1 to :func:`max_agents` (the agents' arrays
+    fit in :data:`MAX_ENGINE_BYTES`) and ``deadline_factor`` a number checked by
+    :func:`~amaze.agents.rewards.check_deadline_factor`; both are checked before
+    anything is allocated or generated (:class:`~amaze.errors.OptionError`).
 
     ``parallel`` chooses the multi-threaded kernels; by default (``None``) they
     run batches large enough for threads to pay off when numba has several
@@ -814,13 +960,11 @@ class BatchEngine:
         auto_reset: bool = True,
         parallel: bool | None = None,
     ) -> None:
-        if n_agents < 1:
-            raise ValueError(f"n_agents must be positive, got {n_agents}")
         self.robot = as_robot(robot)
+        self.n_agents = check_n_agents(n_agents, self.robot)
+        self.deadline_factor = check_deadline_factor(deadline_factor)
         self.mazes = [as_maze(m) for m in mazes]
-        self.tables: MazeTables = compile_mazes(self.mazes, self.robot, deadline_factor)
-        self.n_agents = int(n_agents)
-        self.deadline_factor = float(deadline_factor)
+        self.tables: MazeTables = compile_mazes(self.mazes, self.robot, self.deadline_factor)
         self.auto_reset = bool(auto_reset)
         self.kind = self.robot.kind
         self.dt = self.tables.dt
@@ -971,20 +1115,23 @@ class BatchEngine:
     def step(self, actions: np.ndarray) -> StepResult:
         """Apply one action per agent; see :class:`StepResult`.
 
-        Raises ``ValueError`` for actions of the wrong shape, type or range, and
+        Raises :class:`~amaze.errors.ActionError` for actions of the wrong shape
+        or type, discrete actions out of 0..3 and accelerations holding a NaN
+        or an infinity (finite ones are clipped to [-1, 1]), and
         :class:`EpisodeEndedError` for an agent whose episode ended (without
         auto-reset); the state is then unchanged.
         """
         n = self.n_agents
         if self.kind == "continuous":
-            a = np.asarray(actions, dtype=np.float64)
-            if a.shape != (n, 2):
-                raise ValueError(f"continuous actions must have shape ({n}, 2), got {a.shape}")
+            a = continuous_actions(actions, n)
         else:
-            a = np.asarray(actions)
+            try:
+                a = np.asarray(actions)
+            except (TypeError, ValueError):  # ragged lists and the like
+                a = np.empty(0, dtype=object)
             if a.dtype != _INT64 or a.shape != self._action_shape:
                 if a.shape != self._action_shape or not np.issubdtype(a.dtype, np.integer):
-                    raise ValueError(
+                    raise ActionError(
                         f"discrete actions must be {n} integers, got {a.shape} {a.dtype}"
                     )
                 a = a.astype(np.int64)
@@ -1025,8 +1172,10 @@ class BatchEngine:
     def _refuse(self, status: int, actions: np.ndarray) -> NoReturn:
         """Raise the error a kernel reported (it changed no state)."""
         if status == _BAD_ACTION:
+            if self.kind == "continuous":
+                raise ActionError(non_finite_actions_message(actions))
             bad = np.flatnonzero((actions < 0) | (actions > 3))
-            raise ValueError(
+            raise ActionError(
                 "discrete actions must be in 0..3 (E, N, W, S): agents"
                 f" {bad[:10].tolist()} got {actions[bad[:10]].tolist()}"
             )

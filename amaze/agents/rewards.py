@@ -24,29 +24,87 @@ Two normalisations of an episode:
 * :func:`paper_reward`: the paper's ``R̄`` (Table 2): +2 for reaching the goal,
   ``-dt/(l-1)`` per step, -0.01 per collision, -0.02 per backward step. An
   optimal run scores exactly 1; this is the score of the paper's result tables.
+
+The deadline factor is bounded (:func:`check_deadline_factor`): a finite number
+in [:data:`MIN_DEADLINE_FACTOR`, :data:`MAX_DEADLINE_FACTOR`].
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from amaze.errors import OptionError
+from amaze.validation import check_integer, check_number
+
 TIMESTEP_PENALTY = -1.0  # times dt
 COLLISION_PENALTY = -0.2
 BACKWARD_PENALTY = -0.1
 DEFAULT_DEADLINE_FACTOR = 4.0
+#: The smallest deadline factor: the deadline is then ``l / dt`` steps, time for the
+#: optimal discrete path (``l - 1`` moves) and never less than one step.
+MIN_DEADLINE_FACTOR = 1.0
+#: The largest deadline factor, 250 times the default: even the longest path (the
+#: 10^4 cells of a 100x100 maze) with continuous actions then gives a deadline of
+#: 10^8 steps, which the engine's 32-bit step counters hold.
+MAX_DEADLINE_FACTOR = 1000.0
 
 PAPER_FINISH = 2.0
 PAPER_COLLISION = -0.01
 PAPER_BACKWARD = -0.02
 
 
+def check_deadline_factor(value: object) -> float:
+    """``value`` as a deadline factor: a finite number in [1, 1000], else :class:`OptionError`.
+
+    Why these bounds:
+
+    * NaN and infinities are refused: an infinite factor gives an episode that
+      never ends for an agent that never reaches the goal, and NaN gives NaN
+      normalised rewards (``"pretty_reward": NaN``, which is not JSON);
+    * zero and negative factors are refused: the deadline would be reached
+      before the first step (the environment refused that step), and the
+      worst return ``minimal_reward`` would be positive, so that
+      :func:`pretty_reward` left [-1, 1] (11 for a factor of -1);
+    * the minimum is 1, not just above 0: below it, a deadline shorter than the
+      optimal path makes the goal unreachable (the optimum that
+      :func:`pretty_reward` maps to 1 could never be attained) and, once it is
+      shorter than one step, the one step taken costs far more than
+      ``minimal_reward`` assumes (a factor of 0.01 gives -1.45 on a 5x5 maze);
+    * the maximum, :data:`MAX_DEADLINE_FACTOR`, keeps every deadline within
+      the engine's step counters (the default, 4, is the paper's).
+
+    An episode lasts ``ceil(deadline)`` steps, and :func:`pretty_reward`
+    assumes ``deadline`` steps of the worst kind: when ``factor * l / dt`` is
+    not a whole number, a run that bumps until the deadline still scores below
+    -1 (``docs/reference-behaviour.md`` §4.7); with whole factors, discrete
+    robots never do.
+    """
+    return check_number(
+        "deadline_factor",
+        value,
+        minimum=MIN_DEADLINE_FACTOR,
+        maximum=MAX_DEADLINE_FACTOR,
+        error=OptionError,
+    )
+
+
 @dataclass(frozen=True)
 class RewardScheme:
-    """The reward constants of one maze and time step."""
+    """The reward constants of one maze and time step.
+
+    ``path_length`` is a positive integer, ``dt`` a positive number and
+    ``deadline_factor`` checked by :func:`check_deadline_factor`
+    (:class:`~amaze.errors.OptionError` otherwise).
+    """
 
     path_length: int
     dt: float
     deadline_factor: float = DEFAULT_DEADLINE_FACTOR
+
+    def __post_init__(self) -> None:
+        check_integer("path_length", self.path_length, minimum=1, error=OptionError)
+        check_number("dt", self.dt, minimum=0.0, strict_minimum=True, error=OptionError)
+        object.__setattr__(self, "deadline_factor", check_deadline_factor(self.deadline_factor))
 
     @property
     def timestep(self) -> float:

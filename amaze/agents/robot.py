@@ -6,9 +6,17 @@ A robot string is ``IO[V]`` or a shorthand ``S[V]``:
 * ``CD`` or ``H``: *hybrid*, a ``V x V`` image of the cell in, discrete actions out;
 * ``CC`` or ``C``: continuous, a ``V x V`` image window in, an acceleration out.
 
-``V`` (vision) must be odd and at least 5 when given for image inputs (default
+``V`` (vision) must be odd and within [5, 65] when given for image inputs (default
 15); it is accepted and ignored for discrete inputs (``D11`` is ``DD``), as in the
 reference. Discrete inputs with continuous outputs (``DC``) are not allowed.
+
+Why 65 at most (:data:`MAX_VISION`): a sign is drawn on the ``V - 2`` pixels
+inside the cell's walls, and the reference's own drawings of the built-in
+signs are stored for sizes 3 to 64 only (``amaze.maze.sign_images``), so up
+to 65 every observation is the reference's, pixel for pixel. It is already
+more than four times the paper's 15 (and the reference's default); beyond it an
+observation grows with ``V^2`` bytes per agent for nothing: ``H10001`` asked for
+images of 10^8 pixels.
 Canonical strings: ``DD``, ``CD15``, ``CC11``.
 """
 
@@ -22,6 +30,8 @@ from amaze.validation import check_integer
 
 DEFAULT_VISION = 15
 MIN_VISION = 5
+#: The largest vision (see the module docstring).
+MAX_VISION = 65
 
 #: Physics constants of continuous control (reference §4.1).
 RADIUS = 0.1
@@ -60,8 +70,10 @@ class Robot:
             return
         vision = DEFAULT_VISION if self.vision is None else self.vision
         vision = check_integer("robot vision", vision, error=RobotStringError)
-        if vision % 2 != 1 or vision < MIN_VISION:
-            raise RobotStringError(f"robot vision {vision} must be odd and at least {MIN_VISION}")
+        if vision % 2 != 1 or not MIN_VISION <= vision <= MAX_VISION:
+            raise RobotStringError(
+                f"robot vision {vision} must be odd and within [{MIN_VISION}, {MAX_VISION}]"
+            )
         object.__setattr__(self, "vision", vision)
 
     @classmethod

@@ -9,7 +9,18 @@ deadline, statistics), with these fixes of its bugs:
   reference added the finish bonus a second time);
 * :meth:`Simulation.reset` keeps the ``deadline_factor`` (the reference reset it to 4);
 * every observation returned is a fresh array (the reference handed out one
-  live buffer, which it then overwrote).
+  live buffer, which it then overwrote);
+* continuous actions follow :mod:`amaze.agents.actions`: finite accelerations
+  are clipped to the action space [-1, 1] (the reference applied any value and
+  crashed when the robot left the maze), a NaN or an infinity raises
+  :class:`~amaze.errors.ActionError`; the trajectory records the clipped
+  acceleration, the one applied;
+* the cell the continuous physics looks at is clamped to the maze: a robot
+  pushed at full speed against the east or north border for long enough lands
+  exactly on the border line (``4.9 + 0.0999999999999999 == 5.0``), where the
+  reference indexed outside the maze (``IndexError``); here the border wall
+  stops it, as any other wall;
+* the ``deadline_factor`` is checked (:func:`~amaze.agents.rewards.check_deadline_factor`).
 """
 
 from __future__ import annotations
@@ -19,8 +30,15 @@ from typing import Any
 
 import numpy as np
 
+from amaze.agents.actions import continuous_action
 from amaze.agents.observations import cell_image, continuous_observation, discrete_observation
-from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR, RewardScheme, paper_reward, pretty_reward
+from amaze.agents.rewards import (
+    DEFAULT_DEADLINE_FACTOR,
+    RewardScheme,
+    check_deadline_factor,
+    paper_reward,
+    pretty_reward,
+)
 from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
 from amaze.errors import EpisodeEndedError
 from amaze.maze.directions import OFFSETS, direction_between, discrete_action
@@ -90,7 +108,7 @@ class Simulation:
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         record_trajectory: bool = False,
     ) -> None:
-        self.deadline_factor = float(deadline_factor)
+        self.deadline_factor = check_deadline_factor(deadline_factor)
         self.record_trajectory = record_trajectory
         self.reset(maze, robot)
 
@@ -148,7 +166,12 @@ class Simulation:
     # -- dynamics -------------------------------------------------------------
 
     def step(self, action: Any) -> float:
-        """Apply an action; returns the step's reward (reference §4.5)."""
+        """Apply an action; returns the step's reward (reference §4.5).
+
+        A discrete action is an integer 0..3, a continuous one two real numbers
+        (clipped to [-1, 1]); anything else, a NaN or an infinity included,
+        raises :class:`~amaze.errors.ActionError` and changes nothing.
+        """
         if self.done():
             raise EpisodeEndedError(
                 "the episode has ended (goal or deadline reached); call reset() first"
@@ -198,7 +221,7 @@ class Simulation:
         return False, (float(offset[0]), float(offset[1]))
 
     def _move_continuous(self, action: Any) -> tuple[bool, tuple[float, float]]:
-        ax, ay = (float(a) for a in np.asarray(action, dtype=float).reshape(2))
+        ax, ay = continuous_action(action)  # checked, clipped to [-1, 1]
         dt = self.dt
         damping = 1.0 - INERTIAL_LOSS * dt
         vx = damping * self.velocity[0] + dt * ACCELERATION_SCALE * ax
@@ -207,9 +230,11 @@ class Simulation:
             vx, vy = 0.0, 0.0
         self.velocity = (vx, vy)
         x, y = self.position[0] + dt * vx, self.position[1] + dt * vy
-        i, j = int(x), int(y)
-        r = RADIUS
         walls, w, h = self.maze.walls, self.maze.width, self.maze.height
+        # The cell, clamped to the maze: at full speed against the east or north
+        # border, x + dt * vx can round to exactly w (or y to h).
+        i, j = min(max(int(x), 0), w - 1), min(max(int(y), 0), h - 1)
+        r = RADIUS
         near_w, near_e = x - i <= r, i + 1 - x <= r
         near_s, near_n = y - j <= r, j + 1 - y <= r
         # Stay inside the cell's own walls.

@@ -43,7 +43,14 @@ from amaze.agents.simulation import Trajectory
 from amaze.errors import AmazeError
 from amaze.maze.directions import OFFSETS
 from amaze.maze.maze import Maze, as_maze
-from amaze.maze.render import Color, MazeLayout, Palette, RenderOptions, render_maze
+from amaze.maze.render import (
+    Color,
+    MazeLayout,
+    Palette,
+    RenderError,
+    RenderOptions,
+    render_maze,
+)
 from amaze.maze.spec import MazeSpec
 from amaze.validation import check_integer, check_number
 
@@ -94,6 +101,14 @@ _TRAIL_ALPHA = 0.55
 _EXACT_COLORS = 128
 #: Palette colours closer than this (RGB distance) to a more frequent one are dropped.
 _MIN_PALETTE_DISTANCE = 12
+
+#: Frame rates of animations (frames per second): from one frame per 100 s to 50 (a
+#: GIF counts delays in hundredths of a second, and viewers slow down shorter ones).
+MIN_FPS, MAX_FPS = 0.01, 50.0
+#: The longest pause on the last frame of an animation, in seconds.
+MAX_FINAL_PAUSE = 600.0
+#: A GIF frame's delay is a 16-bit count of hundredths of a second: at most 655.35 s.
+_MAX_GIF_DELAY_MS = 655_350
 
 
 def _gradient(t: float, theme: str) -> Color:
@@ -228,6 +243,8 @@ def _resolve(
             raise TrajectoryError(f"options must be a RenderOptions, not {options!r}")
         options = options.with_overrides(**overrides)
         layout = MazeLayout.of(maze, options)
+    except RenderError as error:
+        raise TrajectoryError(str(error)) from None
     except AmazeError:
         raise
     except ValueError as error:
@@ -823,16 +840,18 @@ def save_episode_gif(
     """Write the episode as a looping animated GIF (folders are created).
 
     Frames come from :func:`render_episode_frames` (keyword arguments are its
-    own), shown ``1/fps`` s each; the last one stays ``final_pause`` s (at least
-    one frame's time). All frames share one adaptive palette, without dithering,
+    own), shown ``1/fps`` s each (``fps`` in [:data:`MIN_FPS`, :data:`MAX_FPS`]);
+    the last one stays ``final_pause`` s (at least one frame's time, at most
+    :data:`MAX_FINAL_PAUSE`): a GIF cannot hold longer delays. Bad values raise
+    :class:`TrajectoryError` naming them. All frames share one adaptive palette, without dithering,
     so colours do not flicker; each frame is written once (the first is not
     repeated) and consecutive frames that are identical once quantised are merged
     into one longer frame, as GIF viewers would show them anyway.
     """
-    fps = check_number(
-        "fps", fps, minimum=0, strict_minimum=True, maximum=50, error=TrajectoryError
+    fps = check_number("fps", fps, minimum=MIN_FPS, maximum=MAX_FPS, error=TrajectoryError)
+    final_pause = check_number(
+        "final_pause", final_pause, minimum=0, maximum=MAX_FINAL_PAUSE, error=TrajectoryError
     )
-    final_pause = check_number("final_pause", final_pause, minimum=0, error=TrajectoryError)
     frames = render_episode_frames(maze, trajectory, max_frames=max_frames, **kwargs)
     frame_ms = max(20, round(1000 / float(fps)))
     durations = [frame_ms] * len(frames)
@@ -843,7 +862,7 @@ def save_episode_gif(
     previous: bytes | None = None
     for frame, duration in zip(quantised, durations, strict=True):
         data = frame.tobytes()
-        if data == previous:
+        if data == previous and merged_ms[-1] + duration <= _MAX_GIF_DELAY_MS:
             merged_ms[-1] += duration
             continue
         merged.append(frame)

@@ -21,7 +21,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from amaze.errors import UsageError
+from amaze.errors import AmazeError, UsageError
 from amaze.maze.signs import register_custom_signs
 from amaze.runs.command import CommandParser, run_command
 
@@ -260,6 +260,25 @@ def _cmd_interpolate(args: argparse.Namespace) -> None:
         print(f"stages picture -> {render_path}", file=sys.stderr if args.json else sys.stdout)
 
 
+def _deadline_factor(text: str) -> float:
+    """The value of ``--deadline-factor``: a finite number in [1, 1000].
+
+    Checked as the library checks it (:func:`~amaze.agents.rewards.check_deadline_factor`)
+    when the command line is read, so that ``nan`` or ``0`` is one ``error:`` line
+    naming the option rather than a late failure.
+    """
+    from amaze.agents.rewards import check_deadline_factor
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    try:
+        return check_deadline_factor(value)
+    except AmazeError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def _add_agent_options(parser: argparse.ArgumentParser, controller: bool = True) -> None:
     parser.add_argument("--robot", default="DD", help="robot string: DD, H15, CC15, ... (DD)")
     if controller:
@@ -272,10 +291,10 @@ def _add_agent_options(parser: argparse.ArgumentParser, controller: bool = True)
     parser.add_argument("--seed", type=int, default=0, help="seed of random controllers (0)")
     parser.add_argument(
         "--deadline-factor",
-        type=float,
+        type=_deadline_factor,
         default=4.0,
         metavar="F",
-        help="episodes end after F x path length time units (4)",
+        help="episodes end after F x path length time units, F in [1, 1000] (4)",
     )
 
 
@@ -308,7 +327,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument(
         "--no-solution", dest="solution", action="store_false", help="do not draw the solution"
     )
-    render.add_argument("--cell-size", type=int, metavar="PX", help="pixels per cell")
+    render.add_argument(
+        "--cell-size", type=int, metavar="PX", help="pixels per cell, 4 to 512 (default: automatic)"
+    )
     render.set_defaults(run=_cmd_render)
 
     stats = commands.add_parser("stats", help="statistics and metrics table of mazes")

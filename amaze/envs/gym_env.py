@@ -8,10 +8,20 @@ in one maze with the reference wrapper's spaces (``docs/reference-behaviour.md``
   continuous robots;
 * actions: ``Discrete(4)`` (E, N, W, S) or ``Box(-1, 1, (2,), float32)`` accelerations;
 * ``terminated`` when the goal is reached, ``truncated`` at the deadline;
-* ``reset(options={"maze": STRING})`` switches to another maze for the next episodes;
+* ``reset(options={"maze": STRING})`` switches to another maze for the next episodes
+  (``options`` is a dict or None; an unknown key is an error naming it);
 * ``info`` holds the episode statistics and, at the end of an episode, both
   normalised rewards (``pretty_reward``, the reference's, and ``paper_reward``,
   the paper's R̄).
+
+Options are checked when the environment is made (:class:`~amaze.errors.OptionError`
+naming the value): ``deadline_factor`` is a finite number in [1, 1000]
+(:func:`~amaze.agents.rewards.check_deadline_factor`), ``render_mode`` one of
+``metadata["render_modes"]`` or None. Actions follow the contract of
+``docs/reference-behaviour.md`` §4.3-4.4 (:class:`~amaze.errors.ActionError`
+otherwise): discrete ones are integers 0..3; continuous ones two real
+numbers, clipped to the action space [-1, 1] when finite, refused when a NaN
+or an infinity (:mod:`amaze.agents.actions`).
 
 The semantics are those of the readable :class:`~amaze.agents.simulation.Simulation`.
 Continuous robots are stepped by one. Robots with discrete actions (``DD`` and
@@ -25,13 +35,20 @@ stepping a ``Simulation``; the tests check both give identical episodes.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from amaze.agents.rewards import RewardScheme, paper_reward, pretty_reward
+from amaze.agents.rewards import (
+    DEFAULT_DEADLINE_FACTOR,
+    RewardScheme,
+    check_deadline_factor,
+    paper_reward,
+    pretty_reward,
+)
 from amaze.agents.robot import Robot, as_robot
 from amaze.agents.simulation import Simulation
 from amaze.agents.tables import (
@@ -42,13 +59,15 @@ from amaze.agents.tables import (
     marker_pixel,
     neighbour_cells,
 )
-from amaze.errors import EpisodeEndedError
+from amaze.errors import EpisodeEndedError, OptionError
 from amaze.maze.directions import discrete_action
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.spec import MazeSpec
 
 ENV_ID = "AMaze-v0"
 DEFAULT_MAZE = "M0_10x10_C1"
+#: The keys of ``reset(options=...)``.
+RESET_OPTIONS = ("maze",)
 
 #: Arrival code (1 + the side leading back) after a move towards E, N, W, S.
 _ARRIVAL_AFTER_MOVE = (1 + 2, 1 + 3, 1 + 0, 1 + 1)
@@ -67,6 +86,28 @@ def action_space(robot: Robot) -> spaces.Space:
     if robot.discrete_outputs:
         return spaces.Discrete(4)
     return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+
+
+def check_reset_options(options: object, known: tuple[str, ...] = RESET_OPTIONS) -> dict:
+    """``reset``'s ``options`` as a dict: None or a mapping whose keys are all ``known``.
+
+    Raises :class:`~amaze.errors.OptionError` naming the value or the unknown keys
+    (a misspelt key would otherwise be ignored silently).
+    """
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise OptionError(
+            f"reset options must be a dict (such as {{'maze': 'M4_10x10_C1'}}) or None,"
+            f" not {options!r}"
+        )
+    unknown = [key for key in options if key not in known]
+    if unknown:
+        accepted = ", ".join(map(repr, known)) if known else "none"
+        raise OptionError(
+            f"unknown reset option(s) {', '.join(map(repr, unknown))} (accepted: {accepted})"
+        )
+    return dict(options)
 
 
 def to_image_u8(image: np.ndarray) -> np.ndarray:
@@ -151,15 +192,15 @@ class MazeEnv(gymnasium.Env):
         self,
         maze: Maze | MazeSpec | str = DEFAULT_MAZE,
         robot: Robot | str = "DD",
-        deadline_factor: float = 4.0,
+        deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         render_mode: str | None = None,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             modes = self.metadata["render_modes"]
-            raise ValueError(f"render_mode {render_mode!r} is not one of {modes}")
+            raise OptionError(f"render_mode {render_mode!r} is not one of {modes} or None")
+        self.deadline_factor = check_deadline_factor(deadline_factor)
         self.robot = as_robot(robot)
         self.render_mode = render_mode
-        self.deadline_factor = float(deadline_factor)
         self.observation_space = observation_space(self.robot)
         self.action_space = action_space(self.robot)
         self.simulation: Simulation | None = None
@@ -267,8 +308,8 @@ class MazeEnv(gymnasium.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode; ``options={"maze": STRING}`` switches the maze."""
+        maze = check_reset_options(options).get("maze")
         super().reset(seed=seed)
-        maze = (options or {}).get("maze")
         if maze is not None:
             self._use_maze(as_maze(maze))
         self._start_episode()

@@ -8,6 +8,17 @@ plays maze ``k % len(mazes)``. Episodes restart in the same step they end
 of the new episode, and ``infos["final_obs"]`` / ``infos["final_info"]`` (with
 their ``_final_obs`` / ``_final_info`` masks) hold the last observation and the
 episode statistics, including both normalised rewards.
+
+Options and actions follow the single environment's contract (see
+:mod:`amaze.envs.gym_env`), checked before anything is generated or allocated
+(:class:`~amaze.errors.OptionError` naming the value): ``num_envs`` is an
+integer from 1 to :func:`~amaze.agents.engine.max_agents` (the engine's arrays
+must fit in :data:`~amaze.agents.engine.MAX_ENGINE_BYTES`, 16 GiB),
+``deadline_factor`` a finite number in [1, 1000], ``render_mode`` None (this
+environment renders nothing) and ``reset`` takes no options (None or an empty
+dict). Continuous actions are clipped to [-1, 1] when finite and refused when
+they hold a NaN or an infinity (:class:`~amaze.errors.ActionError` naming the
+agents), as in the engine.
 """
 
 from __future__ import annotations
@@ -19,12 +30,13 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from amaze.agents.engine import BatchEngine
+from amaze.agents.engine import BatchEngine, check_n_agents
+from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR, check_deadline_factor
 from amaze.agents.robot import Robot, as_robot
-from amaze.envs.gym_env import DEFAULT_MAZE, action_space, observation_space
+from amaze.envs.gym_env import DEFAULT_MAZE, action_space, check_reset_options, observation_space
+from amaze.errors import OptionError
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
-from amaze.validation import check_integer
 
 
 class MazeVectorEnv(VectorEnv):
@@ -46,12 +58,20 @@ class MazeVectorEnv(VectorEnv):
         num_envs: int,
         maze: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str] = DEFAULT_MAZE,
         robot: Robot | str = "DD",
-        deadline_factor: float = 4.0,
+        deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
+        render_mode: str | None = None,
     ) -> None:
-        num_envs = check_integer("num_envs", num_envs, minimum=1)
-        self.mazes = as_mazes(maze)
+        if render_mode is not None:
+            raise OptionError(
+                f"render_mode {render_mode!r}: the vector environment renders nothing"
+                " (render modes: None only)"
+            )
         self.robot = as_robot(robot)
+        num_envs = check_n_agents(num_envs, self.robot, name="num_envs")
+        deadline_factor = check_deadline_factor(deadline_factor)
+        self.mazes = as_mazes(maze)
         self.num_envs = num_envs
+        self.render_mode = None
         self.engine = BatchEngine(
             self.mazes, self.robot, num_envs, deadline_factor=deadline_factor, auto_reset=True
         )
@@ -67,14 +87,18 @@ class MazeVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Restart every agent (the environment itself draws no random numbers)."""
+        """Restart every agent (the environment itself draws no random numbers).
+
+        There are no options: ``options`` must be None or an empty dict.
+        """
+        check_reset_options(options, known=())
         super().reset(seed=seed)
         return self._format(self.engine.reset()), {}
 
     def step(
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        result = self.engine.step(np.asarray(actions))
+        result = self.engine.step(actions)
         infos: dict[str, Any] = {}
         episodes = result.episodes
         if len(episodes):

@@ -33,10 +33,12 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from amaze.agents.actions import clip_acceleration
 from amaze.agents.engine import BatchEngine, EndedEpisodes
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import Robot
 from amaze.agents.simulation import Trajectory
+from amaze.errors import ActionError
 from amaze.maze.directions import OFFSETS
 from amaze.maze.maze import Maze
 from amaze.maze.spec import MazeSpec
@@ -77,11 +79,11 @@ def _actions(policy: Any, observations: np.ndarray, engine: BatchEngine) -> np.n
     if engine.robot.discrete_outputs:
         actions = actions.reshape(-1)
         if actions.shape != (n,):
-            raise ValueError(f"the policy returned {actions.shape[0]} actions for {n} agents")
+            raise ActionError(f"the policy returned {actions.shape[0]} actions for {n} agents")
         if not np.issubdtype(actions.dtype, np.integer):
-            raise ValueError(f"discrete actions must be integers, the policy gave {actions.dtype}")
+            raise ActionError(f"discrete actions must be integers, the policy gave {actions.dtype}")
     elif actions.shape != (n, 2):
-        raise ValueError(f"continuous actions must have shape ({n}, 2), got {actions.shape}")
+        raise ActionError(f"continuous actions must have shape ({n}, 2), got {actions.shape}")
     return actions
 
 
@@ -188,8 +190,9 @@ def record_episode(
 ) -> tuple[EpisodeResults, Trajectory]:
     """Play one episode of one agent and record its trajectory.
 
-    The trajectory holds the position before each step, the action and the
-    reward; ``Trajectory.final_position`` is where the robot ended.
+    The trajectory holds the position before each step, the action applied
+    (an acceleration clipped to [-1, 1], as :class:`~amaze.agents.simulation.Simulation`
+    records it) and the reward; ``Trajectory.final_position`` is where the robot ended.
     """
     engine = BatchEngine([maze], robot, 1, deadline_factor=deadline_factor, auto_reset=False)
     observations = engine.reset()
@@ -204,7 +207,10 @@ def record_episode(
             dx, dy = OFFSETS[int(actions[0])]
             action = (float(dx), float(dy))
         else:
-            action = (float(actions[0, 0]), float(actions[0, 1]))
+            action = (
+                clip_acceleration(float(actions[0, 0])),
+                clip_acceleration(float(actions[0, 1])),
+            )
         trajectory.positions.append((float(position[0]), float(position[1])))
         trajectory.actions.append(action)
         trajectory.rewards.append(float(result.rewards[0]))

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from amaze.agents.engine import BatchEngine
-from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR, check_deadline_factor
 from amaze.agents.robot import Robot, as_robot
 from amaze.evaluation.inputs import InputSet, evaluate_inputs, inputs_for_maze
 from amaze.evaluation.policy import run_episodes
@@ -224,6 +224,7 @@ class Evaluator:
         inputs: bool = True,
     ) -> None:
         self.robot = as_robot(robot)
+        deadline_factor = check_deadline_factor(deadline_factor)  # before generating mazes
         generated, self.labels = _labelled_mazes(mazes)
         self.maze_strings = [m.to_string() for m in generated]
         self.starts = [m.spec.start.shorthand for m in generated]
@@ -287,5 +288,6 @@ def evaluate(
 ) -> EvaluationReport:
     """Score ``policy`` on the standard suite (or on ``mazes``); see the module docstring."""
     key = None if mazes is None else tuple(_maze_key(m) for m in mazes)
-    evaluator = _evaluator(as_robot(robot).to_string(), key, float(deadline_factor), inputs)
+    factor = check_deadline_factor(deadline_factor)
+    evaluator = _evaluator(as_robot(robot).to_string(), key, factor, inputs)
     return evaluator.evaluate(policy)

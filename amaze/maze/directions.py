@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from amaze.errors import AmazeError
+from amaze.errors import ActionError
 
 #: A maze cell ``(i, j)``; ``(0, 0)`` is the south-west corner, ``i`` grows east.
 Cell = tuple[int, int]
@@ -59,12 +59,12 @@ def discrete_action(action: Any) -> int:
     """``action`` as a direction 0..3; anything else (bools, floats, 4...) is an error.
 
     Python and numpy integers are accepted; the error is an
-    :class:`~amaze.errors.AmazeError` naming the bad action.
+    :class:`~amaze.errors.ActionError` (an ``AmazeError``) naming the bad action.
     """
     try:
         direction = operator.index(action)
     except TypeError:
         direction = -1
     if direction not in (0, 1, 2, 3) or isinstance(action, bool):
-        raise AmazeError(f"discrete action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
+        raise ActionError(f"discrete action {action!r} is not one of 0, 1, 2, 3 (E, N, W, S)")
     return direction

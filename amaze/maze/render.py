@@ -24,6 +24,13 @@ Picture conventions:
 
 The geometry of a picture (where each cell and wall lands) is described by
 :class:`MazeLayout`, which callers can use to draw on top of a rendering.
+
+Options are checked before anything is drawn: a bad theme, a non-boolean
+switch, a cell size outside [:data:`MIN_CELL_SIZE`, :data:`MAX_CELL_SIZE`] px,
+a wall width or margin that does not fit, or a picture larger than
+:data:`MAX_SIDE` px a side raise :class:`RenderError` (an
+:class:`~amaze.errors.AmazeError`, so a ``ValueError``) naming the value, and
+the ``amaze`` command prints it as one ``error:`` line.
 """
 
 from __future__ import annotations
@@ -40,11 +47,17 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from amaze.errors import AmazeError
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.signs import Sign, SignKind, custom_sign_path
 from amaze.validation import check_integer
 
 Color = tuple[int, int, int]
+
+
+class RenderError(AmazeError):
+    """A picture option is invalid (a theme, a cell size, a wall width...)."""
+
 
 THEMES: tuple[str, ...] = ("light", "dark")
 MIN_CELL_SIZE = 4
@@ -140,7 +153,7 @@ _MARKERS = {
 def palette(theme: str = "light", colorblind: bool = False) -> Palette:
     """The colours used for ``theme`` (``"light"`` or ``"dark"``)."""
     if theme not in THEMES:
-        raise ValueError(f"unknown theme {theme!r} (expected one of {', '.join(THEMES)})")
+        raise RenderError(f"unknown theme {theme!r} (expected one of {', '.join(THEMES)})")
     markers = {name: _hex(code) for name, code in _MARKERS[(theme, bool(colorblind))].items()}
     return Palette(**_THEME_BASE[theme], **markers)
 
@@ -177,28 +190,30 @@ class RenderOptions:
 
     def __post_init__(self) -> None:
         if not isinstance(self.theme, str) or self.theme not in THEMES:
-            raise ValueError(f"unknown theme {self.theme!r} (expected one of {', '.join(THEMES)})")
+            raise RenderError(f"unknown theme {self.theme!r} (expected one of {', '.join(THEMES)})")
         for name in ("colorblind", "solution", "signs", "sign_kinds", "unreachable", "markers"):
             value = getattr(self, name)
             if not isinstance(value, (bool, np.bool_)):
-                raise ValueError(f"option {name}={value!r} must be a bool")
+                raise RenderError(f"option {name}={value!r} must be a bool")
         cell = self.cell_size
         if cell is not None:
-            check_integer("cell_size", cell, minimum=MIN_CELL_SIZE, maximum=MAX_CELL_SIZE)
+            check_integer(
+                "cell_size", cell, minimum=MIN_CELL_SIZE, maximum=MAX_CELL_SIZE, error=RenderError
+            )
         wall = self.wall_width
         if wall is not None:
-            check_integer("wall_width", wall, minimum=1)
+            check_integer("wall_width", wall, minimum=1, error=RenderError)
         if wall is not None and cell is not None and 2 * wall >= cell:
-            raise ValueError(f"wall_width={wall!r} must be less than half of cell_size={cell!r}")
+            raise RenderError(f"wall_width={wall!r} must be less than half of cell_size={cell!r}")
         if self.margin is not None:
-            check_integer("margin", self.margin, minimum=0)
+            check_integer("margin", self.margin, minimum=0, error=RenderError)
 
     def with_overrides(self, **overrides: Any) -> RenderOptions:
         """A copy with some fields changed; an unknown field name raises ValueError."""
         names = {field.name for field in dataclasses.fields(self)}
         unknown = sorted(set(overrides) - names)
         if unknown:
-            raise ValueError(
+            raise RenderError(
                 f"unknown render option(s) {', '.join(map(repr, unknown))}"
                 f" (known: {', '.join(sorted(names))})"
             )
@@ -214,7 +229,7 @@ def _resolve_options(options: RenderOptions | None, overrides: dict[str, Any]) -
     if options is None:
         options = RenderOptions()
     elif not isinstance(options, RenderOptions):
-        raise ValueError(f"options must be a RenderOptions, not {options!r}")
+        raise RenderError(f"options must be a RenderOptions, not {options!r}")
     return options.with_overrides(**overrides)
 
 
@@ -246,13 +261,13 @@ class MazeLayout:
         cell = options.cell_size or auto_cell_size(maze.width, maze.height)
         wall = options.wall_width or max(1, round(cell / 10))
         if 2 * wall >= cell:
-            raise ValueError(f"wall_width={wall} must be less than half of cell_size={cell}")
+            raise RenderError(f"wall_width={wall} must be less than half of cell_size={cell}")
         margin = options.margin if options.margin is not None else max(2 * wall, round(cell / 4))
         if margin < wall:
-            raise ValueError(f"margin={margin} must be at least the wall width {wall}")
+            raise RenderError(f"margin={margin} must be at least the wall width {wall}")
         layout = cls(maze.width, maze.height, cell, wall, margin)
         if max(layout.size) > MAX_SIDE:
-            raise ValueError(
+            raise RenderError(
                 f"cell_size={cell} makes a {layout.size[0]}x{layout.size[1]} px picture"
                 f" (at most {MAX_SIDE} px a side)"
             )
@@ -344,7 +359,7 @@ def render_maze(
     """Draw ``maze`` (a :class:`~amaze.maze.maze.Maze` or a maze string) as an RGB image.
 
     Keyword arguments override fields of ``options`` (``render_maze(m, theme="dark")``).
-    Bad options raise ValueError naming the value.
+    Bad options raise :class:`RenderError` (a ``ValueError``) naming the value.
     """
     maze = as_maze(maze)
     options = _resolve_options(options, overrides)
@@ -510,10 +525,10 @@ def render_mazes_grid(
     """
     mazes = [as_maze(maze) for maze in mazes]
     if not mazes:
-        raise ValueError("render_mazes_grid needs at least one maze")
+        raise RenderError("render_mazes_grid needs at least one maze")
     if columns is None:
         columns = int(np.ceil(np.sqrt(len(mazes))))
-    columns = check_integer("columns", columns, minimum=1)
+    columns = check_integer("columns", columns, minimum=1, error=RenderError)
     if labels is True:
         captions: list[str] | None = [maze.to_string() for maze in mazes]
     elif labels is False or labels is None:
@@ -521,7 +536,7 @@ def render_mazes_grid(
     else:
         captions = [str(label) for label in labels]
         if len(captions) != len(mazes):
-            raise ValueError(f"{len(captions)} labels for {len(mazes)} mazes")
+            raise RenderError(f"{len(captions)} labels for {len(mazes)} mazes")
     options = _resolve_options(options, overrides)
     if options.cell_size is None:
         side = max(max(maze.width, maze.height) for maze in mazes)

@@ -313,7 +313,11 @@ class SB3Run(Run):
         if len(present) == 1:
             missing = state_file if present[0] == model_file else model_file
             raise RLConfigError(f"checkpoint file {str(missing)!r} is missing")
-        state = _checked_state(read_json_object(state_file, RLConfigError, "checkpoint file"))
+        data = read_json_object(state_file, RLConfigError, "checkpoint file")
+        try:
+            state = _checked_state(data)
+        except RLConfigError as problem:
+            raise RLConfigError(f"checkpoint file {str(state_file)!r}: {problem}") from None
         if state["stage"] >= len(self.stages):
             raise RLConfigError(
                 f"checkpoint file {str(state_file)!r}: stage {state['stage']} is not one of the"

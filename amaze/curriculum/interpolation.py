@@ -51,6 +51,10 @@ from amaze.validation import check_integer
 
 #: Number of stages of the paper's interpolation protocol.
 DEFAULT_STAGES = 10
+#: Most stages an interpolation may have (a sanity bound: past a few hundred,
+#: consecutive stages are mostly the same maze, and a mistyped count would
+#: otherwise build a list of billions).
+MAX_STAGES = 10_000
 #: Side of the default trivial start maze (smaller if the target is smaller).
 TRIVIAL_SIDE = 5
 #: Intersections (and so clues and traps) appear from the first stage with ``u >= 1/2``.
@@ -80,7 +84,9 @@ def interpolate(
     as both mazes carry a seed (a string without ``M`` draws a random one).
     """
     first, last = _as_spec(start, "start"), _as_spec(end, "end")
-    n = check_integer("number of stages n", n, minimum=2, error=InterpolationError)
+    n = check_integer(
+        "number of stages n", n, minimum=2, maximum=MAX_STAGES, error=InterpolationError
+    )
     if seed is not None:
         seed = check_integer("seed", seed, minimum=0, error=InterpolationError)
     stage_seed = last.seed if seed is None else seed

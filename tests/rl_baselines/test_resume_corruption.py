@@ -156,3 +156,15 @@ def test_bad_hyperparameters_are_one_error_line_before_the_run_starts(
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and words in err[0], err
     assert not (tmp_path / "run").exists()
+
+
+def test_an_old_run_without_its_config_is_never_written_over(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "old"
+    shutil.copytree(finished_run, out)
+    (out / "config.json").unlink()
+    before = _snapshot(out)
+    assert main(["--algo", "a2c", "--budget-steps", "40", "--out", str(out)]) == 2
+    assert "not empty and holds no run" in capsys.readouterr().err
+    assert _snapshot(out) == before

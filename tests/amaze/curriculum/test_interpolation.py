@@ -255,3 +255,11 @@ def test_cli_bad_input_is_one_line_and_status_2(capsys, args, message):
     status, out, err = run_cli(capsys, "interpolate", *args)
     assert status == 2 and out == ""
     assert err.startswith("error: ") and err.count("\n") == 1 and message in err
+
+
+def test_a_huge_stage_count_is_refused_not_a_hang() -> None:
+    from amaze.curriculum.interpolation import MAX_STAGES
+
+    with pytest.raises(InterpolationError, match="1000000000"):
+        interpolate("M1_5x5_U", "M1_20x20_C1", 10**9)
+    assert len(interpolate("M1_5x5_U", "M1_20x20_C1", MAX_STAGES)) == MAX_STAGES

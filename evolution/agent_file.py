@@ -178,7 +178,7 @@ def read_agent(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict[str
         EOFError,
         KeyError,
         RuntimeError,
-        NotImplementedError,
+        NotImplementedError,  # zipfile: an entry compressed by an unsupported method
         zipfile.BadZipFile,
         zlib.error,
     ) as error:

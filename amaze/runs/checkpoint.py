@@ -40,32 +40,11 @@ from typing import Any, ClassVar
 
 from amaze.runs.folder import write_bytes
 
-__all__ = ["NUMPY_GLOBALS", "SAFE_CALLS", "Allowlist", "read_checkpoint", "write_checkpoint"]
+__all__ = ["COMMON_GLOBALS", "SAFE_CALLS", "Allowlist", "read_checkpoint", "write_checkpoint"]
 
-#: Globals every checkpoint may name: numpy's pickling helpers (arrays, scalars,
-#: dtypes, random generators), a few containers and built-in types.
-NUMPY_GLOBALS = frozenset(
-    {
-        ("numpy", "ndarray"),
-        ("numpy", "dtype"),
-        ("numpy._core.multiarray", "_reconstruct"),
-        ("numpy._core.multiarray", "scalar"),
-        ("numpy._core.numeric", "_frombuffer"),
-        ("numpy.random._pickle", "__generator_ctor"),
-        ("numpy.random._pickle", "__bit_generator_ctor"),
-        ("numpy.random.bit_generator", "SeedSequence"),
-        ("numpy.random.bit_generator", "__pyx_unpickle_SeedSequence"),
-        ("numpy.random._pcg64", "PCG64"),
-        ("numpy.random._mt19937", "MT19937"),
-        ("collections", "defaultdict"),
-        ("collections", "OrderedDict"),
-        # built-in types, as values (a defaultdict's factory) or, for complex, rebuilt
-        *(("builtins", name) for name in "int float complex str bytes bool list dict set".split()),
-        *(("builtins", name) for name in ("frozenset", "tuple", "bytearray")),
-    }
-)
-
-#: The callables a checkpoint may call while it is read (besides enumerations).
+#: The callables a checkpoint may call while it is read (besides enumerations):
+#: numpy's constructors of arrays, scalars, dtypes and random generators, and
+#: a few containers.
 SAFE_CALLS = frozenset(
     {
         ("numpy", "dtype"),
@@ -78,6 +57,19 @@ SAFE_CALLS = frozenset(
         ("collections", "defaultdict"),
         ("collections", "OrderedDict"),
         ("builtins", "complex"),
+    }
+)
+
+#: Globals every checkpoint may name: the callables above, the types they
+#: build, and built-in types (as values: a defaultdict's factory).
+COMMON_GLOBALS = SAFE_CALLS | frozenset(
+    {
+        ("numpy", "ndarray"),
+        ("numpy.random.bit_generator", "SeedSequence"),
+        ("numpy.random._pcg64", "PCG64"),
+        ("numpy.random._mt19937", "MT19937"),
+        *(("builtins", name) for name in "int float str bytes bool list dict set".split()),
+        *(("builtins", name) for name in ("frozenset", "tuple", "bytearray")),
     }
 )
 
@@ -95,7 +87,7 @@ class Allowlist:
     class_prefixes: tuple[str, ...] = ()
 
     def allows(self, module: str, name: str, obj: Any) -> bool:
-        if (module, name) in self.names or (module, name) in NUMPY_GLOBALS:
+        if (module, name) in self.names or (module, name) in COMMON_GLOBALS:
             return True
         return isinstance(obj, type) and module.startswith(self.class_prefixes)
 

@@ -10,11 +10,11 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from evolution.cli import main
 from evolution.run import EvolveConfig, _State, evolve
+from tests.run_folders import RANDOM, directory, missing, refused_resume, snapshot, truncate, write
 
 CONFIG = {
     "algo": "cmaes",
@@ -34,37 +34,12 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _snapshot(folder: Path) -> dict[str, bytes | None]:
-    return {
-        str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None)
-        for p in sorted(folder.rglob("*"))
-    }
-
-
 class _Payload:
     def __init__(self, marker: Path) -> None:
         self.marker = marker
 
     def __reduce__(self):
         return (Path.touch, (self.marker,))
-
-
-def _write(content: bytes) -> Callable[[Path], None]:
-    return lambda path: path.write_bytes(content)
-
-
-def _truncate(path: Path) -> None:
-    path.write_bytes(path.read_bytes()[: max(1, path.stat().st_size // 2)])
-
-
-def _directory(path: Path) -> None:
-    path.unlink()
-    path.mkdir()
-    (path / "inside").write_text("x")
-
-
-def _missing(path: Path) -> None:
-    path.unlink()
 
 
 def _edit_csv(change: Callable[[list[str]], list[str]]) -> Callable[[Path], None]:
@@ -80,24 +55,22 @@ def _old_version(path: Path) -> None:
     path.write_bytes(pickle.dumps(state))
 
 
-RANDOM = bytes(np.random.default_rng(0).integers(0, 256, 512, dtype=np.uint8))
-
 CASES = {
     # config.json
-    "config missing": ("config.json", _missing, "holds no run"),
-    "config empty": ("config.json", _write(b""), "is not JSON"),
-    "config truncated": ("config.json", _truncate, "is not JSON"),
-    "config random bytes": ("config.json", _write(RANDOM), "cannot be read"),
-    "config directory": ("config.json", _directory, "is a directory"),
-    "config not an object": ("config.json", _write(b"[1, 2]"), "does not hold a JSON object"),
-    "config wrong type": ("config.json", _write(b'{"seed": "zero"}'), "seed 'zero'"),
-    "config unknown key": ("config.json", _write(b'{"colour": 1}'), "'colour'"),
+    "config missing": ("config.json", missing, "holds no run"),
+    "config empty": ("config.json", write(b""), "is not JSON"),
+    "config truncated": ("config.json", truncate, "is not JSON"),
+    "config random bytes": ("config.json", write(RANDOM), "cannot be read"),
+    "config directory": ("config.json", directory, "is a directory"),
+    "config not an object": ("config.json", write(b"[1, 2]"), "does not hold a JSON object"),
+    "config wrong type": ("config.json", write(b'{"seed": "zero"}'), "seed 'zero'"),
+    "config unknown key": ("config.json", write(b'{"colour": 1}'), "'colour'"),
     # progress.csv
-    "progress missing": ("progress.csv", _missing, "no row at generation 3"),
-    "progress empty": ("progress.csv", _write(b""), "header"),
-    "progress truncated": ("progress.csv", _truncate, "progress.csv"),
-    "progress random bytes": ("progress.csv", _write(RANDOM), "not text"),
-    "progress directory": ("progress.csv", _directory, "is a directory"),
+    "progress missing": ("progress.csv", missing, "no row at generation 3"),
+    "progress empty": ("progress.csv", write(b""), "header"),
+    "progress truncated": ("progress.csv", truncate, "progress.csv"),
+    "progress random bytes": ("progress.csv", write(RANDOM), "not text"),
+    "progress directory": ("progress.csv", directory, "is a directory"),
     "progress wrong header": (
         "progress.csv",
         _edit_csv(lambda lines: ["gen,steps", *lines[1:]]),
@@ -119,22 +92,22 @@ CASES = {
         "goes back",
     ),
     # checkpoints/state.pkl
-    "checkpoint missing": ("checkpoints/state.pkl", _missing, "is missing"),
-    "checkpoint empty": ("checkpoints/state.pkl", _write(b""), "is empty"),
-    "checkpoint truncated": ("checkpoints/state.pkl", _truncate, "is damaged"),
-    "checkpoint random bytes": ("checkpoints/state.pkl", _write(RANDOM), "is damaged"),
-    "checkpoint directory": ("checkpoints/state.pkl", _directory, "is a directory"),
+    "checkpoint missing": ("checkpoints/state.pkl", missing, "is missing"),
+    "checkpoint empty": ("checkpoints/state.pkl", write(b""), "is empty"),
+    "checkpoint truncated": ("checkpoints/state.pkl", truncate, "is damaged"),
+    "checkpoint random bytes": ("checkpoints/state.pkl", write(RANDOM), "is damaged"),
+    "checkpoint directory": ("checkpoints/state.pkl", directory, "is a directory"),
     "checkpoint wrong type": (
         "checkpoints/state.pkl",
-        _write(pickle.dumps({"generation": 3})),
+        write(pickle.dumps({"generation": 3})),
         "does not hold a _State",
     ),
     "checkpoint old version": ("checkpoints/state.pkl", _old_version, "version 1"),
     # champion.npz
-    "champion empty": ("champion.npz", _write(b""), "champion.npz"),
-    "champion truncated": ("champion.npz", _truncate, "champion.npz"),
-    "champion random bytes": ("champion.npz", _write(RANDOM), "champion.npz"),
-    "champion directory": ("champion.npz", _directory, "champion.npz"),
+    "champion empty": ("champion.npz", write(b""), "champion.npz"),
+    "champion truncated": ("champion.npz", truncate, "champion.npz"),
+    "champion random bytes": ("champion.npz", write(RANDOM), "champion.npz"),
+    "champion directory": ("champion.npz", directory, "champion.npz"),
 }
 
 
@@ -143,15 +116,8 @@ def test_a_damaged_file_is_refused_by_name_and_nothing_changes(
     finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str
 ) -> None:
     name, damage, words = CASES[case]
-    out = tmp_path / "run"
-    shutil.copytree(finished_run, out)
-    damage(out / name)
-    before = _snapshot(out)
-    assert main(["--resume", str(out), "--no-progress"]) == 2
-    err = capsys.readouterr().err.splitlines()
-    assert len(err) == 1 and err[0].startswith("error: "), err
-    assert Path(name).name in err[0] and words in err[0], err[0]
-    assert _snapshot(out) == before
+    line = refused_resume(main, finished_run, tmp_path / "run", name, damage, capsys)
+    assert Path(name).name in line and words in line, line
 
 
 def test_a_checkpoint_with_a_code_payload_runs_nothing(
@@ -161,10 +127,10 @@ def test_a_checkpoint_with_a_code_payload_runs_nothing(
     shutil.copytree(finished_run, out)
     marker = tmp_path / "marker"
     (out / "checkpoints" / "state.pkl").write_bytes(pickle.dumps(_Payload(marker)))
-    before = _snapshot(out)
+    before = snapshot(out)
     assert main(["--resume", str(out)]) == 2
     assert "refused" in capsys.readouterr().err
-    assert not marker.exists() and _snapshot(out) == before
+    assert not marker.exists() and snapshot(out) == before
 
 
 def test_an_intact_folder_resumes(finished_run: Path, tmp_path: Path) -> None:
@@ -200,11 +166,11 @@ def test_a_folder_that_is_not_a_run_is_never_written_over(
     out.mkdir()
     for name, text in content.items():
         (out / name).write_text(text)
-    before = _snapshot(out)
+    before = snapshot(out)
     argv = ["--mazes", "M0_5x5_U", "--max-generations", "1", "--out", str(out)]
     assert main(argv) == 2
     assert words in capsys.readouterr().err
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
 
 
 def test_out_on_a_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -6,14 +6,22 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from rl_baselines.cli import main
 from rl_baselines.train import train
+from tests.run_folders import (
+    RANDOM,
+    directory,
+    edit_json,
+    missing,
+    refused_resume,
+    snapshot,
+    truncate,
+    write,
+)
 
 CONFIG = {"algo": "a2c", "budget_steps": 40, "eval_every": 20, "tensorboard": False}
 
@@ -26,84 +34,51 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _snapshot(folder: Path) -> dict[str, bytes | None]:
-    return {
-        str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None)
-        for p in sorted(folder.rglob("*"))
-    }
-
-
-def _write(content: bytes) -> Callable[[Path], None]:
-    return lambda path: path.write_bytes(content)
-
-
-def _truncate(path: Path) -> None:
-    path.write_bytes(path.read_bytes()[: max(1, path.stat().st_size // 2)])
-
-
-def _directory(path: Path) -> None:
-    path.unlink()
-    path.mkdir()
-    (path / "inside").write_text("x")
-
-
-def _missing(path: Path) -> None:
-    path.unlink()
-
-
-def _edit_json(**changes: object) -> Callable[[Path], None]:
-    def edit(path: Path) -> None:
-        path.write_text(json.dumps({**json.loads(path.read_text()), **changes}))
-
-    return edit
-
-
-RANDOM = bytes(np.random.default_rng(0).integers(0, 256, 512, dtype=np.uint8))
 STATE = "checkpoints/state.json"
 MODEL = "checkpoints/model.zip"
 
 CASES = {
-    "config missing": ("config.json", _missing, "holds no run"),
-    "config empty": ("config.json", _write(b""), "is not JSON"),
-    "config random bytes": ("config.json", _write(RANDOM), "cannot be read"),
-    "config directory": ("config.json", _directory, "is a directory"),
-    "config wrong type": ("config.json", _edit_json(n_envs="four"), "n_envs 'four'"),
+    "config missing": ("config.json", missing, "holds no run"),
+    "config empty": ("config.json", write(b""), "is not JSON"),
+    "config random bytes": ("config.json", write(RANDOM), "cannot be read"),
+    "config directory": ("config.json", directory, "is a directory"),
+    "config wrong type": ("config.json", edit_json(n_envs="four"), "n_envs 'four'"),
     "config bad hyperparameter": (
         "config.json",
-        _edit_json(hyperparameters={"learning_rate": "x"}),
+        edit_json(hyperparameters={"learning_rate": "x"}),
         "'learning_rate' 'x'",
     ),
-    "progress missing": ("progress.csv", _missing, "no row at steps 40"),
-    "progress empty": ("progress.csv", _write(b""), "header"),
-    "progress random bytes": ("progress.csv", _write(RANDOM), "not text"),
-    "progress directory": ("progress.csv", _directory, "is a directory"),
-    "progress wrong header": ("progress.csv", _write(b"a,b\n1,2\n"), "header"),
+    "progress missing": ("progress.csv", missing, "no row at steps 40"),
+    "progress empty": ("progress.csv", write(b""), "header"),
+    "progress random bytes": ("progress.csv", write(RANDOM), "not text"),
+    "progress directory": ("progress.csv", directory, "is a directory"),
+    "progress wrong header": ("progress.csv", write(b"a,b\n1,2\n"), "header"),
     "progress bad steps": (
         "progress.csv",
-        _write(b"steps,seconds,eval_success,eval_rbar,stage\nmany,0,0,0,0\n"),
+        write(b"steps,seconds,eval_success,eval_rbar,stage\nmany,0,0,0,0\n"),
         "steps 'many'",
     ),
-    "model missing": (MODEL, _missing, "is missing"),
-    "model empty": (MODEL, _write(b""), "model.zip"),
-    "model truncated": (MODEL, _truncate, "model.zip"),
-    "model random bytes": (MODEL, _write(RANDOM), "model.zip"),
-    "model directory": (MODEL, _directory, "model.zip"),
-    "state missing": (STATE, _missing, "is missing"),
-    "state empty": (STATE, _write(b""), "is not JSON"),
-    "state random bytes": (STATE, _write(RANDOM), "cannot be read"),
-    "state directory": (STATE, _directory, "is a directory"),
-    "state not an object": (STATE, _write(b"[]"), "does not hold a JSON object"),
-    "state wrong steps": (STATE, _edit_json(num_timesteps="x"), "num_timesteps 'x'"),
-    "state wrong seconds": (STATE, _edit_json(seconds=-1), "seconds -1"),
-    "state wrong best": (STATE, _edit_json(best="good"), "best 'good'"),
-    "state wrong converged": (STATE, _edit_json(converged="no"), "converged 'no'"),
-    "state stage out of range": (STATE, _edit_json(stage=3), "stage 3"),
-    "champion empty": ("champion.zip", _write(b""), "champion.zip"),
-    "champion truncated": ("champion.zip", _truncate, "champion.zip"),
-    "champion random bytes": ("champion.zip", _write(RANDOM), "champion.zip"),
-    "champion directory": ("champion.zip", _directory, "champion.zip"),
-    "champion sidecar missing": ("champion.json", _missing, "champion.json"),
-    "champion sidecar wrong algo": ("champion.json", _edit_json(algo="dqn"), "dqn"),
+    "model missing": (MODEL, missing, "is missing"),
+    "model empty": (MODEL, write(b""), "model.zip"),
+    "model truncated": (MODEL, truncate, "model.zip"),
+    "model random bytes": (MODEL, write(RANDOM), "model.zip"),
+    "model directory": (MODEL, directory, "model.zip"),
+    "state missing": (STATE, missing, "is missing"),
+    "state empty": (STATE, write(b""), "is not JSON"),
+    "state random bytes": (STATE, write(RANDOM), "cannot be read"),
+    "state directory": (STATE, directory, "is a directory"),
+    "state not an object": (STATE, write(b"[]"), "does not hold a JSON object"),
+    "state wrong steps": (STATE, edit_json(num_timesteps="x"), "num_timesteps 'x'"),
+    "state wrong seconds": (STATE, edit_json(seconds=-1), "seconds -1"),
+    "state wrong best": (STATE, edit_json(best="good"), "best 'good'"),
+    "state wrong converged": (STATE, edit_json(converged="no"), "converged 'no'"),
+    "state stage out of range": (STATE, edit_json(stage=3), "stage 3"),
+    "champion empty": ("champion.zip", write(b""), "champion.zip"),
+    "champion truncated": ("champion.zip", truncate, "champion.zip"),
+    "champion random bytes": ("champion.zip", write(RANDOM), "champion.zip"),
+    "champion directory": ("champion.zip", directory, "champion.zip"),
+    "champion sidecar missing": ("champion.json", missing, "champion.json"),
+    "champion sidecar wrong algo": ("champion.json", edit_json(algo="dqn"), "dqn"),
 }
 
 
@@ -112,17 +87,10 @@ def test_a_damaged_file_is_refused_by_name_and_nothing_changes(
     finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str
 ) -> None:
     name, damage, words = CASES[case]
-    out = tmp_path / "run"
-    shutil.copytree(finished_run, out)
-    damage(out / name)
-    before = _snapshot(out)
-    assert main(["--resume", str(out), "--no-progress"]) == 2
-    err = capsys.readouterr().err.splitlines()
-    assert len(err) == 1 and err[0].startswith("error: "), err
-    assert words in err[0], err[0]
+    line = refused_resume(main, finished_run, tmp_path / "run", name, damage, capsys)
+    assert words in line, line
     if "missing" not in case or name != "config.json":
-        assert Path(name).name in err[0], err[0]
-    assert _snapshot(out) == before
+        assert Path(name).name in line, line
 
 
 def test_an_intact_folder_resumes(finished_run: Path, tmp_path: Path) -> None:
@@ -164,7 +132,7 @@ def test_an_old_run_without_its_config_is_never_written_over(
     out = tmp_path / "old"
     shutil.copytree(finished_run, out)
     (out / "config.json").unlink()
-    before = _snapshot(out)
+    before = snapshot(out)
     assert main(["--algo", "a2c", "--budget-steps", "40", "--out", str(out)]) == 2
     assert "not empty and holds no run" in capsys.readouterr().err
-    assert _snapshot(out) == before
+    assert snapshot(out) == before

@@ -24,6 +24,7 @@ from amaze.runs.command import TrainingCommand
 from amaze.runs.config import RunConfig, option
 from amaze.runs.folder import write_json
 from amaze.runs.lifecycle import Run
+from tests.run_folders import snapshot
 
 
 class CountingError(AmazeError):
@@ -99,10 +100,6 @@ def _rows(out: Path) -> list[str]:
     return (out / "progress.csv").read_text().splitlines()
 
 
-def _snapshot(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
-
-
 def test_fresh_run_writes_the_whole_folder(tmp_path: Path) -> None:
     result = CountingRun.fresh({"steps": 4, "seed": 3}, tmp_path / "run")
     out = tmp_path / "run"
@@ -145,10 +142,10 @@ def test_resume_without_a_checkpoint_starts_over(
 
 def test_an_existing_run_is_never_written_over(tmp_path: Path) -> None:
     CountingRun.fresh({"steps": 2}, tmp_path / "run")
-    before = _snapshot(tmp_path / "run")
+    before = snapshot(tmp_path / "run")
     with pytest.raises(CountingError, match="already holds a run"):
         CountingRun.fresh({"steps": 5}, tmp_path / "run")
-    assert _snapshot(tmp_path / "run") == before
+    assert snapshot(tmp_path / "run") == before
 
 
 def test_bad_config_fails_before_anything_is_written(tmp_path: Path) -> None:
@@ -179,10 +176,10 @@ def test_resume_refuses_a_bad_config_naming_it(
     out.mkdir()
     if content is not None:
         (out / "config.json").write_bytes(content)
-    before = _snapshot(out)
+    before = snapshot(out)
     with pytest.raises(CountingError, match=message):
         CountingRun.resume(out)
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
 
 
 # -- the command skeleton --------------------------------------------------------

@@ -1,0 +1,76 @@
+"""Helpers of the tests that damage run folders: snapshots and ways to damage a file."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+#: 512 random bytes (seeded): a file of garbage.
+RANDOM = bytes(np.random.default_rng(0).integers(0, 256, 512, dtype=np.uint8))
+
+
+def snapshot(folder: Path) -> dict[str, bytes | None]:
+    """Every path under ``folder`` with its content (``None`` for folders)."""
+    return {
+        str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None)
+        for p in sorted(folder.rglob("*"))
+    }
+
+
+def write(content: bytes) -> Callable[[Path], None]:
+    """Damage: replace the file's content."""
+    return lambda path: path.write_bytes(content)
+
+
+def truncate(path: Path) -> None:
+    """Damage: keep the first half of the file."""
+    path.write_bytes(path.read_bytes()[: max(1, path.stat().st_size // 2)])
+
+
+def directory(path: Path) -> None:
+    """Damage: a folder where the file was."""
+    path.unlink()
+    path.mkdir()
+    (path / "inside").write_text("x")
+
+
+def missing(path: Path) -> None:
+    """Damage: no file."""
+    path.unlink()
+
+
+def edit_json(**changes: object) -> Callable[[Path], None]:
+    """Damage: change some keys of a JSON object."""
+
+    def edit(path: Path) -> None:
+        path.write_text(json.dumps({**json.loads(path.read_text()), **changes}))
+
+    return edit
+
+
+def refused_resume(
+    main: Callable[[list[str]], int],
+    finished_run: Path,
+    out: Path,
+    name: str,
+    damage: Callable[[Path], None],
+    capsys: pytest.CaptureFixture[str],
+) -> str:
+    """Damage file ``name`` of a copy of ``finished_run`` and ``--resume`` it.
+
+    Checks the command's contract for a refusal (exit 2, exactly one line
+    ``error: ...`` on stderr, nothing in the folder changed) and returns that line.
+    """
+    shutil.copytree(finished_run, out)
+    damage(out / name)
+    before = snapshot(out)
+    assert main(["--resume", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    assert snapshot(out) == before
+    return err[0]

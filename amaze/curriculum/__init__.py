@@ -3,18 +3,40 @@
 * :mod:`~amaze.curriculum.interpolation`: the paper's interpolation regime,
   ``curriculum(end, n)`` from a trivial maze to a target;
 * :mod:`~amaze.curriculum.regimes`: the regimes as stage lists for any
-  trainer, and how a budget is shared between stages.
+  trainer, and how a budget is shared between stages;
+* :mod:`~amaze.curriculum.genome`: the maze genome of curators: mutation
+  operators on maze strings (:class:`MazeGenome`), a difficulty order
+  (:func:`difficulty`, :func:`harder_or_equal`) and a distance
+  (:func:`maze_distance`).
 """
 
+from amaze.curriculum.genome import (
+    DifficultyProfile,
+    GenomeError,
+    MazeGenome,
+    SignSet,
+    difficulty,
+    difficulty_profile,
+    harder_or_equal,
+    maze_distance,
+)
 from amaze.curriculum.interpolation import InterpolationError, curriculum, interpolate
 from amaze.curriculum.regimes import REGIMES, Stage, regime_stages, stage_end
 
 __all__ = [
     "REGIMES",
+    "DifficultyProfile",
+    "GenomeError",
     "InterpolationError",
+    "MazeGenome",
+    "SignSet",
     "Stage",
     "curriculum",
+    "difficulty",
+    "difficulty_profile",
+    "harder_or_equal",
     "interpolate",
+    "maze_distance",
     "regime_stages",
     "stage_end",
 ]

@@ -171,7 +171,10 @@ class EvolveConfig(RunConfig):
         """The config's options, and ``--population-size`` (an option of every algorithm)."""
         super().add_arguments(parser)
         parser.add_argument(
-            "--population-size", type=int, help="individuals per generation (algorithm option)"
+            "--population-size",
+            type=int,
+            metavar="N",
+            help="individuals per generation (algorithm option)",
         )
 
     @classmethod

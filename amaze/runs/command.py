@@ -90,10 +90,17 @@ class TrainingCommand:
         run.add_argument("--out", metavar="DIR", help="the run folder to create")
         run.add_argument("--resume", metavar="DIR", help="continue the killed run in DIR")
         run.add_argument(
-            "--replicates", type=int, default=1, help="seeds S..S+K-1, each in OUT/seed-<s>"
+            "--replicates",
+            type=int,
+            default=1,
+            metavar="K",
+            help="seeds S..S+K-1, each in OUT/seed-<s>",
         )
         run.add_argument(
-            "--workers", type=int, help="replicates run at once (default: one per core)"
+            "--workers",
+            type=int,
+            metavar="N",
+            help="replicates run at once (default: one per core)",
         )
         run.add_argument(
             "--progress",

@@ -171,6 +171,8 @@ class RunConfig:
                 kwargs["type"] = kind
                 if f.metadata.get("choices"):
                     kwargs["choices"] = f.metadata["choices"]
+                elif kind in (int, float):
+                    kwargs.setdefault("metavar", "N" if kind is int else "X")
             parser.add_argument(flag, **kwargs)
 
     @classmethod

@@ -59,3 +59,15 @@ class MazeStringWarning(UserWarning):
     ``L`` sign, ``L.25`` without ``l``); we keep accepting them, with the same
     maze as result, but say so.
     """
+
+
+def one_line(error: BaseException) -> str:
+    """The first line of an error's message, for reports of one line.
+
+    An ``OSError`` reads ``"<reason>: <file>"``; an error without a message
+    is named by its class.
+    """
+    if isinstance(error, OSError) and error.filename is not None:
+        return f"{error.strerror or type(error).__name__}: {error.filename}"
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__

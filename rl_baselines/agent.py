@@ -49,7 +49,7 @@ from torch import nn
 
 from amaze.agents.robot import Robot, as_robot
 from amaze.envs.gym_env import action_space, observation_space
-from amaze.errors import AmazeError
+from amaze.errors import AmazeError, one_line
 from rl_baselines import RLConfigError
 from rl_baselines.networks import SmallCNN
 
@@ -77,11 +77,6 @@ def _paths(path: str | os.PathLike) -> tuple[Path, Path]:
     if zip_path.suffix != ".zip":
         zip_path = zip_path.with_name(zip_path.name + ".zip")
     return zip_path, zip_path.with_suffix(".json")
-
-
-def _one_line(error: BaseException) -> str:
-    text = str(error).strip()
-    return text.splitlines()[0] if text else type(error).__name__
 
 
 # -----------------------------------------------------------------------------
@@ -261,7 +256,7 @@ def _read_model_file(path: Path, source: str) -> tuple[bytes, dict[str, Any]]:
     try:
         archive = zipfile.ZipFile(io.BytesIO(raw))
     except Exception as error:
-        raise RLConfigError(f"{source} is not a zip archive ({_one_line(error)})") from None
+        raise RLConfigError(f"{source} is not a zip archive ({one_line(error)})") from None
     with archive:
         names = archive.namelist()
         if "data" not in names:
@@ -272,7 +267,7 @@ def _read_model_file(path: Path, source: str) -> tuple[bytes, dict[str, Any]]:
             data = json.loads(archive.read("data").decode("utf-8"))
         except Exception as error:
             raise RLConfigError(
-                f"{source}: its 'data' entry is not readable JSON ({_one_line(error)})"
+                f"{source}: its 'data' entry is not readable JSON ({one_line(error)})"
             ) from None
         if not isinstance(data, dict):
             raise RLConfigError(f"{source}: its 'data' entry is not a JSON object")
@@ -284,7 +279,7 @@ def _read_model_file(path: Path, source: str) -> tuple[bytes, dict[str, Any]]:
             except Exception as error:
                 raise RLConfigError(
                     f"{source}: its entry {name!r} is not a tensor file readable without"
-                    f" unpickling objects ({_one_line(error)})"
+                    f" unpickling objects ({one_line(error)})"
                 ) from None
     return raw, data
 
@@ -334,7 +329,7 @@ def load_sb3_model(
     except Exception as error:
         raise RLConfigError(
             f"{source} cannot be loaded by {name.upper()} for {robot.to_string()} robots:"
-            f" {_one_line(error)}"
+            f" {one_line(error)}"
         ) from None
 
 
@@ -361,7 +356,7 @@ def _read_metadata(zip_path: Path, json_path: Path) -> tuple[str, Robot]:
         ) from None
     except (ValueError, RecursionError) as error:  # JSON, UTF-8 and number errors
         raise RLConfigError(
-            f"{source}: its metadata file '{json_path}' is not valid JSON ({_one_line(error)})"
+            f"{source}: its metadata file '{json_path}' is not valid JSON ({one_line(error)})"
         ) from None
     if not isinstance(meta, dict):
         raise RLConfigError(f"{source}: its metadata file '{json_path}' is not a JSON object")

@@ -24,7 +24,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NoReturn
 
-from amaze.errors import AmazeError, UsageError
+from amaze.errors import AmazeError, UsageError, one_line
 from amaze.runs.lifecycle import Run
 from amaze.runs.replicates import replicate_command
 
@@ -41,13 +41,6 @@ class CommandParser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: {message}")
 
 
-def _one_line(error: BaseException) -> str:
-    if isinstance(error, OSError) and error.filename is not None:
-        return f"{error.strerror or type(error).__name__}: {error.filename}"
-    text = str(error)
-    return text.splitlines()[0] if text else type(error).__name__
-
-
 def run_command(body: Callable[[], int | None]) -> int:
     """Run a command's ``body`` under the error contract; return the exit status."""
     try:
@@ -57,7 +50,7 @@ def run_command(body: Callable[[], int | None]) -> int:
         sys.stdout = open(os.devnull, "w")
         return 0
     except (AmazeError, OSError) as error:
-        print(f"error: {_one_line(error)}", file=sys.stderr)
+        print(f"error: {one_line(error)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         return 130

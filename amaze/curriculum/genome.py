@@ -94,10 +94,10 @@ from types import MappingProxyType
 import numpy as np
 
 from amaze.curriculum.interpolation import LIGHTNESS_DIGITS, PROBABILITY_DIGITS
-from amaze.errors import AmazeError, SignError
+from amaze.errors import AmazeError
 from amaze.maze.maze import Maze
 from amaze.maze.metrics import compute_metrics
-from amaze.maze.signs import Sign, SignKind
+from amaze.maze.signs import Sign, SignKind, as_sign
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec, StartLocation
 from amaze.validation import check_integer, check_number
 
@@ -164,14 +164,7 @@ class SignSet:
 
     def __post_init__(self) -> None:
         for kind in SignKind:
-            sign = getattr(self, kind.value)
-            if isinstance(sign, str):
-                try:
-                    sign = Sign.from_string(sign)
-                except SignError as error:
-                    raise GenomeError(f"sign set: {kind.value} sign: {error}") from None
-            if not isinstance(sign, Sign):
-                raise GenomeError(f"sign set: {kind.value} sign {sign!r} is not a Sign")
+            sign = as_sign(getattr(self, kind.value), f"sign set: {kind.value} sign", GenomeError)
             object.__setattr__(self, kind.value, sign)
         for name in ("p_lure", "p_trap"):
             value = check_number(

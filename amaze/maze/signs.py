@@ -204,6 +204,21 @@ class Sign:
         return self.to_string()
 
 
+def as_sign(value: object, what: str, error: type[ValueError]) -> Sign:
+    """``value`` as a :class:`Sign`: a sign, or a sign string parsed with :meth:`Sign.from_string`.
+
+    Anything else raises ``error`` naming ``what`` (e.g. ``"clue sign"``) and the value.
+    """
+    if isinstance(value, str):
+        try:
+            return Sign.from_string(value)
+        except SignError as problem:
+            raise error(f"{what} '{value}': {problem}") from None
+    if not isinstance(value, Sign):
+        raise error(f"{what} {value!r} is neither a Sign nor a sign string")
+    return value
+
+
 class _NotANumber(Exception):
     pass
 

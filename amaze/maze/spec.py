@@ -55,8 +55,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import IntEnum
 
-from amaze.errors import MazeStringError, MazeStringWarning, SignError
-from amaze.maze.signs import Sign, format_value
+from amaze.errors import MazeStringError, MazeStringWarning
+from amaze.maze.signs import Sign, as_sign, format_value
 from amaze.validation import check_integer, check_number
 
 MIN_SIZE, MAX_SIZE = 2, 100
@@ -220,17 +220,7 @@ class MazeSpec:
 def _as_signs(name: str, signs: object) -> tuple[Sign, ...]:
     if isinstance(signs, (str, Sign)) or not isinstance(signs, Iterable):
         raise MazeStringError(f"{name} must be a sequence of signs, not {signs!r}")
-    result = []
-    for sign in signs:
-        if isinstance(sign, str):
-            try:
-                sign = Sign.from_string(sign)
-            except SignError as error:
-                raise MazeStringError(f"{name} sign '{sign}': {error}") from None
-        if not isinstance(sign, Sign):
-            raise MazeStringError(f"{name} sign {sign!r} is neither a Sign nor a sign string")
-        result.append(sign)
-    return tuple(result)
+    return tuple(as_sign(sign, f"{name} sign", MazeStringError) for sign in signs)
 
 
 def _parse_token(

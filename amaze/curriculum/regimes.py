@@ -10,7 +10,15 @@ stages; curators of later regimes produce stages the same way.
   evaluated on :data:`~amaze.evaluation.suite.PAPER_EVALUATION_MAZE`'s 4 rotations;
 * **interpolation** (paper §4): the 10 stages of
   :func:`~amaze.curriculum.interpolation.curriculum` from a trivial 5x5 maze to
-  the training maze, each trained and evaluated on its own 4 rotations.
+  the training maze, each trained and evaluated on its own 4 rotations; run
+  by the curriculum loop (:mod:`amaze.runs.curriculum`) with the
+  ``interpolation`` curator and one branch per stage;
+* **edhucat** (paper, Algorithm 1): the curriculum loop with K branches per
+  stage and a curator (:mod:`amaze.curriculum.curators`) that selects the
+  agent that goes on and generates the next mazes.
+
+:func:`branch_allowance` shares a curriculum's budget between its stages and
+branches.
 """
 
 from __future__ import annotations
@@ -22,9 +30,18 @@ from amaze.errors import AmazeError
 from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
 from amaze.maze import rotations
 
-__all__ = ["REGIMES", "Stage", "regime_stages", "stage_end"]
+__all__ = [
+    "CURRICULUM_REGIMES",
+    "REGIMES",
+    "Stage",
+    "branch_allowance",
+    "regime_stages",
+    "stage_end",
+]
 
-REGIMES = ("direct", "interpolation")
+REGIMES = ("direct", "interpolation", "edhucat")
+#: The regimes played by the curriculum loop (stages of branches chosen by a curator).
+CURRICULUM_REGIMES = ("interpolation", "edhucat")
 
 
 @dataclass(frozen=True)
@@ -56,3 +73,21 @@ def stage_end(budget: int, used: int, stages_left: int) -> int:
     if stages_left <= 1:
         return budget
     return used + max(budget - used, 0) // stages_left
+
+
+def branch_allowance(budget: int, used: int, stage: int, stages: int, branches: int) -> int:
+    """Env steps each branch of ``stage`` may spend: the paper's split, with hand-on.
+
+    The paper gives every agent of every stage at most ``budget / (K * S)``
+    steps (3 M steps, K = 3, S = 10: 100 k). Here each branch of a stage gets
+    an equal share of what is left, ``(budget - used) // (K * stages_left)``:
+    the paper's figure when every earlier branch spent its share, more when
+    earlier stages converged early or had fewer branches (the first stage
+    trains one agent), since their unused steps are handed on to the stages
+    still to come. Branches of one stage always get the same allowance (they
+    compete with each other), and the last stage shares all that is left.
+    """
+    stages_left = stages - stage
+    if stages_left < 1:
+        raise ValueError(f"stage {stage} is not one of {stages} stages")
+    return max(budget - used, 0) // (branches * stages_left)

@@ -83,6 +83,11 @@ class TrainingCommand:
         run.add_argument("--out", metavar="DIR", help="the run folder to create")
         run.add_argument("--resume", metavar="DIR", help="continue the killed run in DIR")
         run.add_argument(
+            "--replay",
+            metavar="RUN_DIR",
+            help="rerun RUN_DIR's config with its recorded curriculum decisions, into --out",
+        )
+        run.add_argument(
             "--replicates",
             type=int,
             default=1,
@@ -112,6 +117,10 @@ class TrainingCommand:
         progress = sys.stderr.isatty() if args.progress is None else args.progress
         if args.resume:
             result = self.run_class.resume(args.resume, progress_bar=progress)
+        elif args.replay:
+            if not args.out:
+                raise UsageError("--replay needs --out, the folder of the new run")
+            result = self.run_class.replay(args.replay, args.out, progress_bar=progress)
         elif args.replicates != 1:
             return replicate_command(
                 self.module, argv, args.seed, args.replicates, args.out, args.workers
@@ -122,8 +131,8 @@ class TrainingCommand:
             config_class = self.run_class.config_class
             data = config_class.from_file_and_arguments(args, args.config)
             result = self.run_class.fresh(data, args.out, progress_bar=progress)
-        print(self.run_class.headline(result.summary))
-        print(f"run folder: {result.out} ({', '.join(self.run_class.outputs)})")
+        print(result.headline)
+        print(f"run folder: {result.out} ({', '.join(result.outputs)})")
         return 0
 
     def entry_point(self) -> NoReturn:

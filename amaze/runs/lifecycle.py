@@ -47,11 +47,17 @@ SUMMARY_FILE = "summary.json"
 
 @dataclass(frozen=True)
 class RunResult:
-    """A finished run: its folder, its final agent (a policy) and ``summary.json``'s content."""
+    """A finished run: its folder, its final agent (a policy) and ``summary.json``'s content.
+
+    ``headline`` sums it up in one line and ``outputs`` names the files a user
+    looks at first (both from the run's class, for the command line).
+    """
 
     out: Path
     agent: Any
     summary: dict[str, Any]
+    headline: str = ""
+    outputs: tuple[str, ...] = ()
 
     @property
     def env_steps(self) -> int:
@@ -124,6 +130,16 @@ class Run(ABC):
         """Write the trainer's own pictures (called before ``summary.json`` is written)."""
 
     @classmethod
+    def run_class_for(cls, config: RunConfig) -> type[Run]:
+        """The class that runs ``config``: this one, or a sibling for another regime.
+
+        A trainer whose regimes need different loops (a fixed training set, a
+        curriculum) returns the class of the config's regime; :meth:`fresh`
+        and :meth:`resume` hand the run to it.
+        """
+        return cls
+
+    @classmethod
     def headline(cls, summary: Mapping[str, Any]) -> str:
         """One line that sums a finished run up for the command line."""
         recognition = summary.get("input_recognition")
@@ -150,7 +166,7 @@ class Run(ABC):
         config.validate()
         path = Path(out)
         cls._check_new_folder(path, config.error)
-        run = cls(path, config)
+        run = cls.run_class_for(config)(path, config)
         run.start()
         path.mkdir(parents=True, exist_ok=True)
         write_json(path / CONFIG_FILE, config.to_dict())
@@ -161,7 +177,9 @@ class Run(ABC):
     def resume(cls, out: str | os.PathLike, *, progress_bar: bool = False) -> RunResult:
         """Continue the run in ``out`` from its latest checkpoint, then finish it."""
         path = Path(out)
-        run = cls(path, cls.read_config(path))
+        config = cls.read_config(path)
+        cls = cls.run_class_for(config)
+        run = cls(path, config)
         error = run.config.error
         # Every file is checked before anything in the folder changes.
         rows = run.progress.checked_rows(cls.position_field, error)
@@ -184,6 +202,28 @@ class Run(ABC):
             run.progress.keep(lambda row: int(row[cls.position_field]) <= position)
         run.train(progress_bar)
         return run.finish()
+
+    @classmethod
+    def replay(
+        cls, source: str | os.PathLike, out: str | os.PathLike, *, progress_bar: bool = False
+    ) -> RunResult:
+        """A new run in ``out`` with the config of the run in ``source`` and its decisions.
+
+        Only runs that record decisions (curricula) can be replayed; the
+        others are refused by :meth:`replay_config`.
+        """
+        path = Path(source)
+        config = cls.read_config(path)
+        run_class = cls.run_class_for(config)
+        replayed = run_class.replay_config(path, config)
+        return run_class.fresh(replayed, out, progress_bar=progress_bar)
+
+    @classmethod
+    def replay_config(cls, source: Path, config: RunConfig) -> RunConfig:
+        """The config of a run that replays the run in ``source`` (hook; refused by default)."""
+        raise config.error(
+            f"{str(source)!r} holds a run that records no decisions: there is nothing to replay"
+        )
 
     @staticmethod
     def _check_new_folder(path: Path, error: type[ValueError]) -> None:
@@ -223,4 +263,7 @@ class Run(ABC):
             save_trajectory_png(maze, trajectory, path, robot=robot, caption=True)
         self.extra_outputs()
         write_json(self.out / SUMMARY_FILE, summary)
-        return RunResult(self.out, agent, summary)
+        run_class = type(self)
+        return RunResult(
+            self.out, agent, summary, run_class.headline(summary), tuple(run_class.outputs)
+        )

@@ -1,0 +1,91 @@
+"""The learner protocol: what a curriculum needs from a trainer, whatever the trainer.
+
+A curriculum (the EDHuCAT loop of :mod:`amaze.runs.curriculum`) never looks
+inside an agent: it asks a :class:`Learner` to train on mazes for a number of
+environment steps, to copy itself into independent branches, to hand over
+its agent for evaluation, and to save itself. Both trainers implement it:
+
+* ``evolution.learner.EvolutionLearner``: the search algorithm's whole state
+  (population, strategy, random generators), its champion of the current
+  mazes as the agent;
+* ``rl_baselines.learner.SB3Learner``: an SB3 A2C/PPO model with its
+  optimiser state, the model itself as the agent.
+
+**Random streams.** A branch draws from its own random stream, derived from
+the run's seed, the stage and the branch by :func:`branch_seed`, so branches
+never share draws and a run replays identically from its seed.
+
+**Training sessions.** ``train(mazes, budget_steps, checkpoint=...)`` is one
+session: the learner trains on ``mazes`` (as given: a curriculum passes the
+4 rotations of its mazes) until it has spent ``budget_steps`` environment
+steps in the session, or earlier once it has converged (every training
+episode optimal). A session is spent in the learner's own units (whole
+generations, whole rollouts), so it may end a little past its budget; the
+outcome says what it spent. During a session the learner calls
+``checkpoint()`` at safe points (after a generation, at the start of a
+rollout), at the pace its own settings ask for; the caller saves the learner
+there. A learner saved that way and loaded again is *inside* its session:
+calling ``train`` with the same mazes and budget continues the session where
+it was saved instead of starting another one, which is how a killed run
+resumes mid-stage.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["Learner", "TrainingOutcome", "branch_seed"]
+
+
+@dataclass(frozen=True)
+class TrainingOutcome:
+    """What one training session spent and reached."""
+
+    #: Environment steps of the session (over every resumed part of it).
+    env_steps: int
+    #: Wall-clock seconds of the session (over every resumed part of it).
+    seconds: float
+    #: True if the session stopped early because every training episode was optimal.
+    converged: bool
+
+
+@runtime_checkable
+class Learner(Protocol):
+    """An agent in training, as a curriculum drives it (see the module docstring)."""
+
+    def train(
+        self,
+        mazes: Sequence[str],
+        budget_steps: int,
+        *,
+        checkpoint: Callable[[], None] | None = None,
+    ) -> TrainingOutcome:
+        """Train on ``mazes`` for ``budget_steps`` env steps (less if it converges)."""
+        ...
+
+    def branch(self, seed: int) -> Learner:
+        """An independent copy that draws from a random stream seeded with ``seed``."""
+        ...
+
+    def agent(self) -> Any:
+        """The agent to evaluate: a policy of :mod:`amaze.evaluation.policy`."""
+        ...
+
+    def save(self, folder: Path) -> None:
+        """Write the learner into ``folder`` (created if needed), every file atomically."""
+        ...
+
+
+def branch_seed(run_seed: int, stage: int, branch: int) -> int:
+    """The seed of the random stream of ``branch`` at ``stage`` of a run seeded ``run_seed``.
+
+    Derived with :class:`numpy.random.SeedSequence`, so that the streams of
+    different (seed, stage, branch) triples are independent; in ``[0, 2**31)``.
+    """
+    state = np.random.SeedSequence([int(run_seed), int(stage), int(branch)]).generate_state(1)
+    return int(state[0]) & 0x7FFF_FFFF

@@ -1,0 +1,96 @@
+"""``curriculum.png``: a whole curriculum at a glance.
+
+One row per stage, one column per branch: each branch's maze as a thumbnail,
+captioned with its success rate and R̄ on its own maze's 4 rotations. The
+branch selected to go on is framed, and lines join it to the branches of
+the next stage it was copied into, so the lineage of the final agent reads
+from top to bottom.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from PIL import Image, ImageDraw, ImageFont
+
+from amaze.curriculum.curators import StageRecord
+from amaze.maze.render import render_maze
+from amaze.maze.spec import MazeSpec
+
+__all__ = ["render_curriculum", "save_curriculum_png"]
+
+#: Side of a maze thumbnail, in pixels (about).
+THUMBNAIL = 112
+PAD = 14
+CAPTION = 34
+LABEL = 64
+SELECTED = (214, 39, 40)
+LINEAGE = (31, 119, 180)
+TEXT = (30, 30, 30)
+
+
+def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+    try:
+        return ImageFont.load_default(size=size)
+    except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType
+        return ImageFont.load_default()
+
+
+def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.Image:
+    """The picture of ``records`` (stages in order, each with its candidates)."""
+    columns = max((len(r.candidates) for r in records), default=1)
+    cell_w, cell_h = THUMBNAIL + PAD, THUMBNAIL + CAPTION + PAD
+    top = 30 if title else PAD
+    width = LABEL + columns * cell_w + PAD
+    height = top + max(len(records), 1) * cell_h + PAD
+    image = Image.new("RGB", (width, height), "white")
+    draw = ImageDraw.Draw(image)
+    font, small = _font(14), _font(11)
+    if title:
+        draw.text((PAD, 8), title, fill=TEXT, font=font)
+
+    def box(stage: int, branch: int) -> tuple[int, int, int, int]:
+        x = LABEL + branch * cell_w
+        y = top + stage * cell_h
+        return x, y, x + THUMBNAIL, y + THUMBNAIL
+
+    for row, record in enumerate(records):
+        y_label = top + row * cell_h + THUMBNAIL // 2 - 7
+        draw.text((PAD, y_label), f"stage {record.stage}", fill=TEXT, font=small)
+        for candidate in record.candidates:
+            x0, y0, x1, y1 = box(row, candidate.branch)
+            maze = candidate.mazes[0]
+            spec = MazeSpec.from_string(maze)
+            side = max(spec.width, spec.height)
+            thumbnail = render_maze(maze, cell_size=max(2, THUMBNAIL // side))
+            thumbnail.thumbnail((THUMBNAIL, THUMBNAIL))
+            image.paste(thumbnail, (x0 + (THUMBNAIL - thumbnail.width) // 2, y0))
+            if record.selected == candidate.branch:
+                draw.rectangle((x0 - 4, y0 - 4, x1 + 3, y1 + 3), outline=SELECTED, width=3)
+            caption = f"b{candidate.branch}: success {candidate.success_rate:.2f}"
+            draw.text((x0, y1 + 4), caption, fill=TEXT, font=small)
+            draw.text((x0, y1 + 17), f"Rbar {candidate.mean_reward:+.2f}", fill=TEXT, font=small)
+        if row + 1 < len(records) and record.selected is not None:
+            px0, _, px1, py1 = box(row, record.selected)
+            for child in records[row + 1].candidates:
+                cx0, cy0, cx1, _ = box(row + 1, child.branch)
+                draw.line(
+                    ((px0 + px1) // 2, py1 + CAPTION - 2, (cx0 + cx1) // 2, cy0 - 5),
+                    fill=LINEAGE,
+                    width=2,
+                )
+    return image
+
+
+def save_curriculum_png(
+    records: Sequence[StageRecord], path: str | os.PathLike, title: str = ""
+) -> Path:
+    """Write :func:`render_curriculum` to ``path`` atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    render_curriculum(records, title).save(tmp)
+    os.replace(tmp, path)
+    return path

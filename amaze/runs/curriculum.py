@@ -1,0 +1,758 @@
+"""The curriculum loop as a run: EDHuCAT (paper, Algorithm 1) for any trainer.
+
+::
+
+    a <- a new agent, trained on a trivial maze
+    for stage 1 .. S-1:
+        a <- select(candidates of the previous stage)      # the curator
+        mazes <- generate(K)                               # the curator
+        candidates <- K copies of a, each trained on one maze (its 4 rotations)
+    return select(candidates of the last stage)            # the curator
+
+:class:`CurriculumRun` is that loop on the shared run lifecycle
+(:mod:`amaze.runs.lifecycle`); a trainer supplies its learner
+(:class:`~amaze.curriculum.learner.Learner`) through :meth:`CurriculumRun.new_learner`
+and :meth:`CurriculumRun.load_learner`, and a curator
+(:mod:`amaze.curriculum.curators`) makes the decisions. The interpolation
+regime is the same loop with the ``interpolation`` curator and one branch.
+
+**Budget.** ``budget_steps`` env steps in all, shared between stages and
+branches by :func:`~amaze.curriculum.regimes.branch_allowance` (the paper's
+``budget / (K * S)`` per agent per stage, the steps a stage leaves unspent
+handed on to the next ones). Branches of a stage are copies of the selected
+agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_seed`).
+
+**Run folder** (besides ``config.json``, ``summary.json``, ``trajectories/``):
+
+* ``decisions.jsonl``: every decision, one JSON object per line, appended
+  (atomically) before the loop acts on it: ``stage``, ``kind`` (``generate``
+  with the ``mazes``, canonical strings; ``select`` with the ``choice``, a
+  branch index, and the ``candidates``' figures), the ``curator``'s name, the
+  ``time`` (UTC, ISO 8601) and the ``seconds`` the decision took; ``forced``
+  when there was one candidate, ``replayed`` when it came from another run;
+* ``stages/stage-<s>/branch-<b>/``: ``agent/`` (the learner after its
+  training, saved by the trainer), ``result.json`` (the candidate: mazes,
+  results per maze and rotation on every maze of the stage, lineage, steps,
+  seconds; written last, so a branch with a result is finished),
+  ``trajectory.png`` (the agent on its maze) and, while it trains,
+  ``checkpoint/`` (the learner mid-session);
+* ``progress.csv``: one row per finished branch;
+* ``curriculum.png``: the curriculum at a glance (stage x branch thumbnails
+  with success and R̄, the selected branches and the lineage).
+
+**Resume and replay.** The folder is the loop's state: a resumed run reads
+the decisions already made (a human is never asked twice), skips the
+finished branches, continues the branch in training from its checkpoint,
+and goes on. ``--replay RUN_DIR`` starts a new run with RUN_DIR's config and
+its decisions (copied to ``replay.jsonl``) in place of the curator: with a
+deterministic trainer (evolution) it reaches the same agents, bit for bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import time
+from abc import abstractmethod
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, ClassVar
+
+from amaze.agents.trajectories import save_trajectory_png
+from amaze.curriculum.curators import (
+    Candidate,
+    Curator,
+    CuratorContext,
+    CuratorError,
+    History,
+    MazeResults,
+    StageRecord,
+    check_mazes,
+    curator_names,
+    make_curator,
+)
+from amaze.curriculum.interpolation import MAX_STAGES
+from amaze.curriculum.learner import Learner, branch_seed
+from amaze.curriculum.regimes import CURRICULUM_REGIMES, REGIMES, branch_allowance
+from amaze.evaluation.policy import record_episode
+from amaze.evaluation.protocol import Evaluator
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE
+from amaze.maze import rotations
+from amaze.maze.spec import MazeSpec
+from amaze.runs.config import RunConfig, option
+from amaze.runs.folder import write_bytes, write_json
+from amaze.runs.lifecycle import Run
+from amaze.validation import check_integer
+
+__all__ = [
+    "DECISIONS_FILE",
+    "MAX_BRANCHES",
+    "CurriculumConfig",
+    "CurriculumRun",
+    "Decision",
+    "DecisionLog",
+]
+
+DECISIONS_FILE = "decisions.jsonl"
+REPLAY_FILE = "replay.jsonl"
+#: Most branches per stage.
+MAX_BRANCHES = 64
+#: The default numbers of stages and branches (the paper's S and K).
+DEFAULT_STAGES = 10
+DEFAULT_BRANCHES = {"edhucat": 3, "interpolation": 1}
+DEFAULT_CURATOR = {"edhucat": "careful", "interpolation": "interpolation"}
+PROGRESS_FIELDS = (
+    "branches",
+    "stage",
+    "branch",
+    "steps",
+    "seconds",
+    "success",
+    "rbar",
+    "converged",
+    "maze",
+)
+
+
+@dataclass
+class CurriculumConfig(RunConfig):
+    """The regime fields of a trainer's config (``regime``, ``curator``, ``stages``...).
+
+    In the direct regime ``curator``, ``stages`` and ``branches`` stay unset;
+    in a curriculum regime :meth:`validate` fills them with the regime's
+    defaults, so ``config.json`` records what ran.
+    """
+
+    regime: str = option("direct", "training regime", choices=REGIMES)
+    curator: str | None = option(
+        None,
+        "who selects agents and generates mazes in the edhucat regime: careful, moderate,"
+        " risky, random, human, interpolation or a plug-in's name (default: careful)",
+        metavar="NAME",
+    )
+    stages: int | None = option(
+        None, f"curriculum stages S, the trivial first one included (default {DEFAULT_STAGES})",
+        metavar="S",
+    )  # fmt: skip
+    branches: int | None = option(
+        None, "branches K per stage (default: 3 for edhucat, 1 for interpolation)", metavar="K"
+    )
+    target: str = option(
+        PAPER_TRAINING_MAZE, "the maze a curriculum leads to (default: the paper's training maze)"
+    )
+    curator_options: dict[str, Any] = option(
+        default_factory=dict, help="the curator's own options", command_line=False
+    )
+    replay: str | None = option(
+        None, "the run whose recorded decisions this run replays", command_line=False
+    )
+
+    @property
+    def is_curriculum(self) -> bool:
+        """True for the regimes the curriculum loop plays."""
+        return self.regime in CURRICULUM_REGIMES
+
+    def validate(self) -> CurriculumConfig:
+        """Check the regime fields (and the shared ones); fill a curriculum's defaults."""
+        super().validate()
+        if self.regime not in REGIMES:
+            raise self.error(f"unknown regime {self.regime!r} (choose from {', '.join(REGIMES)})")
+        if not self.is_curriculum:
+            for name in ("curator", "stages", "branches", "replay"):
+                if getattr(self, name) is not None:
+                    raise self.error(
+                        f"{name} {getattr(self, name)!r} is for the curriculum regimes"
+                        f" ({', '.join(CURRICULUM_REGIMES)}), not {self.regime}"
+                    )
+            return self
+        if self.curator is None:
+            self.curator = DEFAULT_CURATOR[self.regime]
+        if self.regime == "interpolation" and self.curator != "interpolation":
+            raise self.error(
+                f"curator {self.curator!r}: the interpolation regime's curator is interpolation"
+                " (use --regime edhucat for another curator)"
+            )
+        if not isinstance(self.curator, str) or self.curator not in curator_names():
+            raise self.error(
+                f"unknown curator {self.curator!r} (choose from {', '.join(curator_names())})"
+            )
+        if self.stages is None:
+            self.stages = DEFAULT_STAGES
+        if self.branches is None:
+            self.branches = DEFAULT_BRANCHES[self.regime]
+        self.stages = check_integer(
+            "stages", self.stages, minimum=1, maximum=MAX_STAGES, error=self.error
+        )
+        self.branches = check_integer(
+            "branches", self.branches, minimum=1, maximum=MAX_BRANCHES, error=self.error
+        )
+        try:
+            self.target = MazeSpec.from_string(str(self.target)).to_string()
+        except ValueError as problem:
+            raise self.error(f"target {self.target!r}: {problem}") from None
+        if not isinstance(self.curator_options, dict):
+            raise self.error(f"curator_options {self.curator_options!r} is not a JSON object")
+        if self.replay is not None and not isinstance(self.replay, str):
+            raise self.error(f"replay {self.replay!r} is not a run folder")
+        return self
+
+    def curator_context(self) -> CuratorContext:
+        """What the curator is built from."""
+        assert self.stages is not None and self.branches is not None
+        return CuratorContext(
+            target=self.target,
+            seed=self.seed,
+            stages=self.stages,
+            branches=self.branches,
+            robot=self.robot,
+            options=dict(self.curator_options),
+        )
+
+
+# -- decisions ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One line of ``decisions.jsonl`` (see the module docstring)."""
+
+    stage: int
+    kind: str
+    curator: str
+    time: str
+    seconds: float
+    choice: int | None = None
+    candidates: tuple[dict[str, Any], ...] | None = None
+    mazes: tuple[str, ...] | None = None
+    forced: bool = False
+    replayed: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        data: dict[str, Any] = {
+            "stage": self.stage,
+            "kind": self.kind,
+            "curator": self.curator,
+            "time": self.time,
+            "seconds": round(self.seconds, 6),
+        }
+        if self.kind == "select":
+            data["choice"] = self.choice
+            data["candidates"] = list(self.candidates or ())
+        else:
+            data["mazes"] = list(self.mazes or ())
+        if self.forced:
+            data["forced"] = True
+        if self.replayed:
+            data["replayed"] = True
+        return data
+
+
+def decision_sequence(stages: int) -> list[tuple[int, str]]:
+    """The (stage, kind) of every decision of a finished run, in order."""
+    sequence = [(0, "generate")]
+    for stage in range(1, stages):
+        sequence += [(stage, "select"), (stage, "generate")]
+    return [*sequence, (stages, "select")]
+
+
+class DecisionLog:
+    """``decisions.jsonl``: read with every line checked, appended atomically."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def read(
+        self, stages: int, branches: int, error: type[ValueError], what: str = "decisions file"
+    ) -> list[Decision]:
+        """The decisions, checked against the run's ``stages`` and ``branches``.
+
+        Every line must be the JSON object of the next decision the loop
+        makes (:func:`decision_sequence`), with valid mazes (as many as the
+        stage has branches) or a choice among the previous stage's branches;
+        anything else raises ``error`` naming the file and the line.
+        """
+        where = repr(str(self.path))
+        if not (self.path.exists() or self.path.is_symlink()):
+            return []
+        try:
+            text = self.path.read_bytes().decode("utf-8")
+        except IsADirectoryError:
+            raise error(f"{what} {where} is a directory") from None
+        except UnicodeDecodeError:
+            raise error(f"{what} {where} is not text") from None
+        expected = decision_sequence(stages)
+        decisions: list[Decision] = []
+        for number, line in enumerate(text.splitlines(), start=1):
+            if not line.strip():
+                continue
+
+            def bad(problem: str, number: int = number) -> ValueError:
+                return error(f"{what} {where}, line {number}: {problem}")
+
+            try:
+                data = json.loads(line)
+            except json.JSONDecodeError as problem:
+                raise bad(f"not JSON ({problem})") from None
+            if not isinstance(data, dict):
+                raise bad("not a JSON object")
+            index = len(decisions)
+            if index >= len(expected):
+                raise bad(f"one decision too many (a run of {stages} stages makes {index})")
+            stage, kind = expected[index]
+            if data.get("stage") != stage or data.get("kind") != kind:
+                raise bad(
+                    f"stage {data.get('stage')!r} kind {data.get('kind')!r}, where the"
+                    f" loop's next decision is the {kind} of stage {stage}"
+                )
+            for key, types in (("curator", str), ("time", str), ("seconds", int | float)):
+                if not isinstance(data.get(key), types) or isinstance(data.get(key), bool):
+                    raise bad(f"{key} {data.get(key)!r} is missing or of the wrong type")
+            common = {
+                "stage": stage,
+                "kind": kind,
+                "curator": data["curator"],
+                "time": data["time"],
+                "seconds": float(data["seconds"]),
+                "forced": data.get("forced") is True,
+                "replayed": data.get("replayed") is True,
+            }
+            if kind == "generate":
+                count = 1 if stage == 0 else branches
+                try:
+                    mazes = check_mazes(data.get("mazes"), count, data["curator"])
+                except CuratorError as problem:
+                    raise bad(str(problem)) from None
+                decisions.append(Decision(**common, mazes=tuple(mazes)))
+            else:
+                count = 1 if stage == 1 else branches
+                choice = data.get("choice")
+                if not isinstance(choice, int) or isinstance(choice, bool):
+                    raise bad(f"choice {choice!r} is not a branch number")
+                if not 0 <= choice < count:
+                    raise bad(f"choice {choice} is not one of the {count} branches")
+                candidates = data.get("candidates", [])
+                if not isinstance(candidates, list) or not all(
+                    isinstance(c, dict) for c in candidates
+                ):
+                    raise bad("candidates is not a list of JSON objects")
+                decisions.append(Decision(**common, choice=choice, candidates=tuple(candidates)))
+        return decisions
+
+    def append(self, decision: Decision) -> None:
+        """Add one decision: the whole file is rewritten atomically (it holds 2 S lines)."""
+        old = self.path.read_bytes() if self.path.exists() else b""
+        if old and not old.endswith(b"\n"):
+            old += b"\n"
+        line = json.dumps(decision.to_dict(), sort_keys=True) + "\n"
+        write_bytes(self.path, old + line.encode("utf-8"))
+
+
+# -- the run --------------------------------------------------------------------------
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def _candidate_from_dict(data: Mapping[str, Any], folder: Path) -> Candidate:
+    """A candidate read from ``result.json`` (any missing or ill-typed key raises)."""
+    mazes = tuple(str(m) for m in data["mazes"])
+    results = [MazeResults.from_dict(r) for r in data["results"]]
+    own = tuple(r for r in results if r.maze in mazes)
+    return Candidate(
+        stage=int(data["stage"]),
+        branch=int(data["branch"]),
+        mazes=mazes,
+        own=own,
+        others=tuple(r for r in results if r.maze not in mazes),
+        lineage=tuple(int(b) for b in data["lineage"]),
+        env_steps=int(data["env_steps"]),
+        seconds=float(data["seconds"]),
+        converged=bool(data["converged"]),
+        lineage_steps=int(data["lineage_steps"]),
+        pictures=tuple(folder / str(p) for p in data.get("pictures", [])),
+    )
+
+
+def _candidate_to_dict(candidate: Candidate, results: Sequence[MazeResults]) -> dict[str, Any]:
+    return {
+        "stage": candidate.stage,
+        "branch": candidate.branch,
+        "mazes": list(candidate.mazes),
+        "results": [r.to_dict() for r in results],
+        "lineage": list(candidate.lineage),
+        "env_steps": candidate.env_steps,
+        "seconds": round(candidate.seconds, 3),
+        "converged": candidate.converged,
+        "lineage_steps": candidate.lineage_steps,
+        "pictures": [p.name for p in candidate.pictures],
+        "success_rate": candidate.success_rate,
+        "mean_reward": candidate.mean_reward,
+    }
+
+
+class CurriculumRun(Run):
+    """The curriculum loop of a trainer; subclasses supply the trainer's learner."""
+
+    progress_fields = PROGRESS_FIELDS
+    position_field = "branches"
+    checkpoint_files = ()
+    outputs: ClassVar[tuple[str, ...]] = (
+        "summary.json",
+        "decisions.jsonl",
+        "curriculum.png",
+        "stages/",
+        "progress.csv",
+    )
+    config: Any  # a CurriculumConfig subclass with an integer budget_steps
+
+    def __init__(self, out: Any, config: Any) -> None:
+        super().__init__(out, config)
+        self.decisions = DecisionLog(self.out / DECISIONS_FILE)
+        self.recorded: list[Decision] = []
+        self.replayed: list[Decision] = []
+        self.curator: Curator | None = None
+        self.records: list[StageRecord] = []
+        self.final: Candidate | None = None
+
+    # -- the trainer's part ---------------------------------------------------
+
+    @abstractmethod
+    def new_learner(self, seed: int) -> Learner:
+        """A fresh learner for the run's robot and options, drawing from ``seed``."""
+
+    @abstractmethod
+    def load_learner(self, folder: Path) -> Learner:
+        """The learner saved in ``folder``; a damaged one raises the config's error naming it."""
+
+    def learner_figures(self) -> dict[str, Any]:
+        """The trainer's entries of ``summary.json`` (algorithm, robot...)."""
+        return {}
+
+    # -- the lifecycle's hooks --------------------------------------------------
+
+    @classmethod
+    def replay_config(cls, source: Path, config: RunConfig) -> RunConfig:
+        """``source``'s config, marked as a replay of ``source``, once its decisions check."""
+        c: Any = config
+        decisions = DecisionLog(source / DECISIONS_FILE).read(c.stages, c.branches, c.error)
+        if len(decisions) < len(decision_sequence(c.stages)):
+            raise c.error(
+                f"{str(source)!r} holds {len(decisions)} of the {2 * c.stages} decisions of its"
+                " run (it is unfinished: resume it first)"
+            )
+        return dataclasses.replace(c, replay=str(source))
+
+    def start(self) -> None:
+        """Build the curator (a bad name or plug-in fails here) and read a replay's decisions."""
+        c = self.config
+        try:
+            self.curator = make_curator(c.curator, c.curator_context())
+        except CuratorError as problem:
+            raise c.error(str(problem)) from None
+        if c.replay is not None:
+            source = Path(c.replay) / DECISIONS_FILE
+            self.replayed = DecisionLog(source).read(c.stages, c.branches, c.error)
+
+    def restore(self) -> int | None:
+        """Check the decisions, the replay's and every finished branch; count the branches."""
+        c = self.config
+        self.start()
+        self.recorded = self.decisions.read(c.stages, c.branches, c.error)
+        replay_copy = DecisionLog(self.out / REPLAY_FILE)
+        if c.replay is not None and replay_copy.path.exists():
+            self.replayed = replay_copy.read(c.stages, c.branches, c.error, "replayed decisions")
+        finished = 0
+        for result in sorted(self.out.glob("stages/stage-*/branch-*/result.json")):
+            self._read_candidate(result.parent)
+            finished += 1
+        return finished or None
+
+    def train(self, progress_bar: bool) -> None:
+        """The loop (see the module docstring), skipping what the folder says is done."""
+        from tqdm import tqdm
+
+        c = self.config
+        if self.replayed and not (self.out / REPLAY_FILE).exists():
+            text = "".join(json.dumps(d.to_dict(), sort_keys=True) + "\n" for d in self.replayed)
+            write_bytes(self.out / REPLAY_FILE, text.encode("utf-8"))
+        self.records = []
+        with tqdm(
+            total=c.budget_steps,
+            unit="steps",
+            unit_scale=True,
+            disable=not progress_bar,
+            desc=f"{c.regime} {c.curator} seed {c.seed}",
+            dynamic_ncols=True,
+        ) as bar:
+            parent: Candidate | None = None
+            for stage in range(c.stages):
+                if stage == 0:
+                    mazes = self._decide(0, "generate", lambda: [self._context().trivial_maze()])
+                else:
+                    parent = self._select(stage)
+                    history = History(stage=stage, parent=parent, stages=tuple(self.records))
+                    mazes = self._decide(stage, "generate", lambda h=history: self._generate(h))
+                used = self._steps()
+                allowance = branch_allowance(c.budget_steps, used, stage, c.stages, c.branches)
+                evaluator = Evaluator(c.robot, rotations(mazes), inputs=False)
+                candidates: list[Candidate] = []
+                for branch in range(len(mazes)):
+                    candidate = self._branch(
+                        stage, branch, mazes, parent, allowance, evaluator, self._steps(candidates)
+                    )
+                    candidates.append(candidate)
+                    bar.update(min(self._steps(candidates), c.budget_steps) - bar.n)
+                    bar.set_postfix(
+                        stage=stage, branch=branch, success=f"{candidate.success_rate:.2f}"
+                    )
+                self.records.append(StageRecord(stage, tuple(mazes), tuple(candidates)))
+            self.final = self._select(c.stages)
+
+    def final_agent(self) -> Any:
+        assert self.final is not None
+        return self.load_learner(self._branch_folder(self.final) / "agent").agent()
+
+    def figures(self) -> dict[str, Any]:
+        c = self.config
+        assert self.final is not None
+        stages = []
+        for record in self.records:
+            chosen = record.candidates[record.selected] if record.selected is not None else None
+            stages.append(
+                {
+                    "stage": record.stage,
+                    "mazes": list(record.mazes),
+                    "selected": record.selected,
+                    "success_rate": None if chosen is None else chosen.success_rate,
+                    "mean_reward": None if chosen is None else chosen.mean_reward,
+                    "env_steps": sum(candidate.env_steps for candidate in record.candidates),
+                }
+            )
+        return {
+            **self.learner_figures(),
+            "robot": c.robot,
+            "seed": c.seed,
+            "regime": c.regime,
+            "curator": c.curator,
+            "stages": c.stages,
+            "branches": c.branches,
+            "target": c.target,
+            "replay_of": c.replay,
+            "budget_steps": c.budget_steps,
+            "env_steps": self._steps(),
+            "seconds": round(sum(k.seconds for r in self.records for k in r.candidates), 3),
+            "final_lineage": list(self.final.lineage),
+            "final_mazes": list(self.final.mazes),
+            "curriculum": stages,
+        }
+
+    def trajectory_mazes(self) -> list[tuple[str, str]]:
+        """The final agent in the 4 rotations of the target maze."""
+        mazes = rotations(self.config.target)
+        return [(f"target-rotation-{index}", maze) for index, maze in enumerate(mazes)]
+
+    def extra_outputs(self) -> None:
+        from amaze.curriculum.picture import save_curriculum_png
+
+        save_curriculum_png(self.records, self.out / "curriculum.png", title=self._title())
+
+    @classmethod
+    def headline(cls, summary: Mapping[str, Any]) -> str:
+        return (
+            f"{summary['regime']} ({summary['curator']}, {summary['stages']} stages x"
+            f" {summary['branches']} branches), final lineage {summary['final_lineage']};"
+            f" {super().headline(summary)}"
+        )
+
+    # -- the loop's own ---------------------------------------------------------
+
+    def _context(self) -> CuratorContext:
+        return self.config.curator_context()
+
+    def _title(self) -> str:
+        c = self.config
+        return f"{c.regime} / {c.curator}, seed {c.seed}: {c.stages} stages x {c.branches}"
+
+    def _steps(self, current: Sequence[Candidate] = ()) -> int:
+        """Env steps of every finished branch (and of ``current``, the stage in progress)."""
+        done = sum(k.env_steps for record in self.records for k in record.candidates)
+        return done + sum(k.env_steps for k in current)
+
+    def _generate(self, history: History) -> list[str]:
+        assert self.curator is not None
+        return self.curator.generate(self.config.branches, history)
+
+    def _select(self, stage: int) -> Candidate:
+        """The select decision made before ``stage`` (``stages``: the final one)."""
+        record = self.records[-1]
+        candidates = record.candidates
+
+        def ask() -> int:
+            assert self.curator is not None
+            chosen = self.curator.select(list(candidates))
+            for index, candidate in enumerate(candidates):
+                if chosen is candidate or chosen == candidate:
+                    return index
+            raise self.config.error(
+                f"curator {self.config.curator!r} selected {chosen!r}, not one of the candidates"
+            )
+
+        choice = self._decide(stage, "select", ask, candidates)
+        self.records[-1] = dataclasses.replace(record, selected=choice)
+        return candidates[choice]
+
+    def _decide(
+        self,
+        stage: int,
+        kind: str,
+        ask: Callable[[], Any],
+        candidates: Sequence[Candidate] = (),
+    ) -> Any:
+        """A decision: recorded already (resume), replayed, or asked now and recorded."""
+        c = self.config
+        index = decision_sequence(c.stages).index((stage, kind))
+        if index < len(self.recorded):
+            decision = self.recorded[index]
+        else:
+            if index < len(self.replayed):
+                decision = dataclasses.replace(
+                    self.replayed[index], time=_now(), seconds=0.0, replayed=True
+                )
+            else:
+                started = time.perf_counter()
+                forced = kind == "select" and len(candidates) == 1
+                answer = 0 if forced else ask()
+                seconds = time.perf_counter() - started
+                common = {
+                    "stage": stage,
+                    "kind": kind,
+                    "curator": c.curator,
+                    "time": _now(),
+                    "seconds": seconds,
+                    "forced": forced,
+                }
+                if kind == "generate":
+                    count = 1 if stage == 0 else c.branches
+                    try:
+                        mazes = check_mazes(answer, count, c.curator)
+                    except CuratorError as problem:
+                        raise c.error(str(problem)) from None
+                    decision = Decision(**common, mazes=tuple(mazes))
+                else:
+                    figures = tuple(candidate.figures() for candidate in candidates)
+                    decision = Decision(**common, choice=int(answer), candidates=figures)
+            self.decisions.append(decision)
+            self.recorded.append(decision)
+        if kind == "generate":
+            return list(decision.mazes or ())
+        if decision.choice is None or not 0 <= decision.choice < len(candidates):
+            raise c.error(f"decision of stage {stage}: choice {decision.choice!r} is out of range")
+        return decision.choice
+
+    def _branch_folder(self, candidate_or_stage: Candidate | int, branch: int = 0) -> Path:
+        if isinstance(candidate_or_stage, Candidate):
+            stage, branch = candidate_or_stage.stage, candidate_or_stage.branch
+        else:
+            stage = candidate_or_stage
+        return self.out / "stages" / f"stage-{stage}" / f"branch-{branch}"
+
+    def _read_candidate(self, folder: Path) -> Candidate:
+        """The finished branch in ``folder``, its ``result.json`` checked."""
+        from amaze.runs.config import read_json_object
+
+        path = folder / "result.json"
+        data = read_json_object(path, self.config.error, "branch result")
+        try:
+            return _candidate_from_dict(data, folder)
+        except (KeyError, TypeError, ValueError) as problem:
+            raise self.config.error(
+                f"branch result {str(path)!r} is damaged ({type(problem).__name__}: {problem})"
+            ) from None
+
+    def _branch(
+        self,
+        stage: int,
+        branch: int,
+        mazes: Sequence[str],
+        parent: Candidate | None,
+        allowance: int,
+        evaluator: Evaluator,
+        steps_before: int,
+    ) -> Candidate:
+        """Train (or finish training) one branch, evaluate it, write its result."""
+        c = self.config
+        folder = self._branch_folder(stage, branch)
+        if (folder / "result.json").exists():
+            candidate = self._read_candidate(folder)
+            if candidate.mazes != (mazes[branch],) or candidate.stage != stage:
+                raise c.error(
+                    f"branch result {str(folder / 'result.json')!r} is of another maze or stage"
+                    " than the decisions say"
+                )
+            return candidate
+        started = time.perf_counter()
+        checkpoint = folder / "checkpoint"
+        if (checkpoint).exists():
+            learner = self.load_learner(checkpoint)
+        elif parent is None:
+            learner = self.new_learner(branch_seed(c.seed, stage, branch))
+        else:
+            parent_learner = self.load_learner(self._branch_folder(parent) / "agent")
+            learner = parent_learner.branch(branch_seed(c.seed, stage, branch))
+        outcome = learner.train(
+            rotations(mazes[branch]), allowance, checkpoint=lambda: learner.save(checkpoint)
+        )
+        learner.save(folder / "agent")
+        agent = learner.agent()
+        report = evaluator.evaluate(agent)
+        results = []
+        for index, maze in enumerate(mazes):
+            episodes = report.episodes[4 * index : 4 * index + 4]
+            results.append(
+                MazeResults(
+                    maze=maze,
+                    success=tuple(e.success for e in episodes),
+                    paper_reward=tuple(e.paper_reward for e in episodes),
+                    steps=tuple(e.steps for e in episodes),
+                )
+            )
+        _, trajectory = record_episode(mazes[branch], c.robot, agent)
+        picture = folder / "trajectory.png"
+        save_trajectory_png(mazes[branch], trajectory, picture, robot=c.robot, caption=True)
+        lineage = (*parent.lineage, branch) if parent is not None else (branch,)
+        parent_steps = parent.lineage_steps if parent is not None else 0
+        own = results[branch]
+        candidate = Candidate(
+            stage=stage,
+            branch=branch,
+            mazes=(mazes[branch],),
+            own=(own,),
+            others=tuple(r for i, r in enumerate(results) if i != branch),
+            lineage=lineage,
+            env_steps=outcome.env_steps,
+            seconds=outcome.seconds + (time.perf_counter() - started),
+            converged=outcome.converged,
+            lineage_steps=parent_steps + outcome.env_steps,
+            pictures=(picture,),
+        )
+        write_json(folder / "result.json", _candidate_to_dict(candidate, results))
+        finished = len(list(self.out.glob("stages/stage-*/branch-*/result.json")))
+        self.progress.append(
+            {
+                "branches": finished,
+                "stage": stage,
+                "branch": branch,
+                "steps": steps_before + candidate.env_steps,
+                "seconds": round(candidate.seconds, 3),
+                "success": candidate.success_rate,
+                "rbar": candidate.mean_reward,
+                "converged": candidate.converged,
+                "maze": mazes[branch],
+            }
+        )
+        shutil.rmtree(checkpoint, ignore_errors=True)
+        return candidate

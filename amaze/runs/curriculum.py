@@ -438,6 +438,8 @@ class CurriculumRun(Run):
     def replay_config(cls, source: Path, config: RunConfig) -> RunConfig:
         """``source``'s config, marked as a replay of ``source``, once its decisions check."""
         c: Any = config
+        if not c.is_curriculum:
+            return super().replay_config(source, config)
         decisions = DecisionLog(source / DECISIONS_FILE).read(c.stages, c.branches, c.error)
         if len(decisions) < len(decision_sequence(c.stages)):
             raise c.error(

@@ -1,0 +1,342 @@
+"""The curriculum loop of amaze.runs.curriculum, with a toy learner: decisions, budgets, resume."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from amaze.curriculum import curators
+from amaze.curriculum.interpolation import curriculum
+from amaze.curriculum.learner import branch_seed
+from amaze.curriculum.regimes import branch_allowance
+from amaze.errors import AmazeError
+from amaze.runs.curriculum import DECISIONS_FILE, DecisionLog, decision_sequence
+from tests.amaze.runs.toy_curriculum import ToyConfig, ToyLearner, ToyRun
+from tests.run_folders import snapshot
+
+TARGET = "M5_8x8_C1"
+CONFIG = {
+    "regime": "edhucat",
+    "curator": "random",
+    "stages": 3,
+    "branches": 2,
+    "budget_steps": 6000,
+    "target": TARGET,
+}
+
+
+def decisions(folder: Path) -> list[dict]:
+    lines = (folder / DECISIONS_FILE).read_text().splitlines()
+    return [json.loads(line) for line in lines]
+
+
+def choices(folder: Path) -> list[tuple]:
+    """The decisions without their times: what the curriculum was."""
+    return [
+        (d["stage"], d["kind"], d.get("choice"), tuple(d.get("mazes", ())))
+        for d in decisions(folder)
+    ]
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("curriculum") / "run"
+    ToyRun.fresh(CONFIG, out)
+    return out
+
+
+def test_a_run_records_every_decision_in_the_loops_order(finished: Path) -> None:
+    records = decisions(finished)
+    assert [(d["stage"], d["kind"]) for d in records] == decision_sequence(3)
+    assert records[0]["mazes"] == ["M5_5x5_U"]  # the trivial first maze
+    assert records[1]["forced"] is True  # one candidate after the first stage
+    for record in records:
+        assert record["curator"] == "random"
+        assert record["time"].endswith("+00:00")
+    generated = [d for d in records if d["kind"] == "generate" and d["stage"] > 0]
+    assert all(len(d["mazes"]) == 2 for d in generated)
+    assert all(m.endswith("_8x8_C1") for d in generated for m in d["mazes"])
+    select = records[3]
+    assert [c["branch"] for c in select["candidates"]] == [0, 1]
+    assert {"success_rate", "mean_reward", "overall_success_rate", "env_steps"} <= set(
+        select["candidates"][0]
+    )
+
+
+def test_the_budget_is_split_as_the_paper_does_and_handed_on(finished: Path) -> None:
+    rows = [json.loads((p / "result.json").read_text()) for p in _branches(finished)]
+    steps = {(r["stage"], r["branch"]): r["env_steps"] for r in rows}
+    assert steps[(0, 0)] == 6000 // 6 == branch_allowance(6000, 0, 0, 3, 2)
+    # Stage 0 trained one agent: the unused slot is handed on to later stages.
+    assert steps[(1, 0)] == steps[(1, 1)] == (6000 - 1000) // 4
+    assert steps[(2, 0)] == steps[(2, 1)] == (6000 - 1000 - 2 * 1250) // 2
+    summary = json.loads((finished / "summary.json").read_text())
+    assert summary["env_steps"] == sum(steps.values()) == 6000
+    assert [s["stage"] for s in summary["curriculum"]] == [0, 1, 2]
+    assert summary["final_lineage"][0] == 0 and len(summary["final_lineage"]) == 3
+
+
+def test_the_run_folder_holds_stages_progress_and_pictures(finished: Path) -> None:
+    assert len(_branches(finished)) == 1 + 2 * 2
+    for branch in _branches(finished):
+        assert (branch / "agent" / "toy.json").is_file()
+        assert (branch / "trajectory.png").is_file()
+        assert not (branch / "checkpoint").exists()
+    rows = (finished / "progress.csv").read_text().splitlines()
+    assert len(rows) == 1 + 5
+    assert (finished / "curriculum.png").stat().st_size > 1000
+    assert len(list((finished / "trajectories").glob("target-rotation-*.png"))) == 4
+
+
+def test_branches_copy_the_selected_agent_with_their_own_seed(finished: Path) -> None:
+    records = decisions(finished)
+    chosen = records[3]["choice"]
+    for branch in range(2):
+        agent = json.loads(
+            (finished / f"stages/stage-2/branch-{branch}/agent/toy.json").read_text()
+        )
+        assert agent["seed"] == branch_seed(0, 2, branch)
+        # Trained on the trivial maze, its stage-1 parent's maze, then its own.
+        assert agent["trained"] == 1000 + 1250 + 1250
+    assert json.loads((finished / "summary.json").read_text())["final_lineage"][1] == chosen
+
+
+def test_the_interpolation_regime_is_the_loop_with_one_branch(tmp_path: Path) -> None:
+    result = ToyRun.fresh(
+        {"regime": "interpolation", "stages": 4, "budget_steps": 4000, "target": TARGET},
+        tmp_path / "run",
+    )
+    assert result.summary["curator"] == "interpolation"
+    assert result.summary["branches"] == 1
+    plan = [spec.to_string() for spec in curriculum(TARGET, 4)]
+    generated = [d["mazes"][0] for d in decisions(tmp_path / "run") if d["kind"] == "generate"]
+    assert generated == plan
+    assert [s["env_steps"] for s in result.summary["curriculum"]] == [1000] * 4
+
+
+class Interrupted(Exception):
+    pass
+
+
+def test_a_run_killed_mid_branch_resumes_to_the_same_curriculum(
+    tmp_path: Path, finished: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls = {"n": 0}
+    original = ToyLearner.train
+
+    def dying(self, mazes, budget_steps, *, checkpoint=None):
+        def checkpoint_then_die() -> None:
+            checkpoint()
+            calls["n"] += 1
+            if calls["n"] == 4:  # inside stage 1, branch 0, after a checkpoint
+                raise Interrupted
+
+        return original(self, mazes, budget_steps, checkpoint=checkpoint_then_die)
+
+    monkeypatch.setattr(ToyLearner, "train", dying)
+    out = tmp_path / "run"
+    with pytest.raises(Interrupted):
+        ToyRun.fresh(CONFIG, out)
+    assert (out / "stages/stage-1/branch-0/checkpoint/toy.json").is_file()
+    monkeypatch.setattr(ToyLearner, "train", original)
+    result = ToyRun.resume(out)
+    assert choices(out) == choices(finished)
+    assert result.summary["env_steps"] == 6000
+    assert len((out / "progress.csv").read_text().splitlines()) == 6
+    for branch in _branches(finished):
+        relative = branch.relative_to(finished)
+        assert (out / relative / "agent/toy.json").read_text() == (
+            branch / "agent/toy.json"
+        ).read_text()
+
+
+def test_a_replay_makes_the_recorded_decisions_without_the_curator(
+    tmp_path: Path, finished: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def no_curator(self, *args):
+        raise AssertionError("a replay never asks the curator")
+
+    monkeypatch.setattr("amaze.curriculum.strategies.RandomCurator.generate", no_curator)
+    monkeypatch.setattr("amaze.curriculum.strategies.RandomCurator.select", no_curator)
+    result = ToyRun.replay(finished, tmp_path / "replay")
+    assert choices(tmp_path / "replay") == choices(finished)
+    assert all(d["replayed"] for d in decisions(tmp_path / "replay"))
+    assert result.summary["replay_of"] == str(finished)
+    assert (tmp_path / "replay" / "replay.jsonl").is_file()
+
+
+def test_an_unfinished_or_direct_run_cannot_be_replayed(tmp_path: Path, finished: Path) -> None:
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    (unfinished / "config.json").write_bytes((finished / "config.json").read_bytes())
+    lines = (finished / DECISIONS_FILE).read_text().splitlines(keepends=True)
+    (unfinished / DECISIONS_FILE).write_text("".join(lines[:3]))
+    with pytest.raises(AmazeError, match="3 of the 6 decisions"):
+        ToyRun.replay(unfinished, tmp_path / "new")
+    direct = tmp_path / "direct"
+    direct.mkdir()
+    (direct / "config.json").write_text(json.dumps({"regime": "direct"}))
+    with pytest.raises(AmazeError, match="records no decisions"):
+        ToyRun.replay(direct, tmp_path / "new2")
+    assert not (tmp_path / "new").exists() and not (tmp_path / "new2").exists()
+
+
+def _damaged(line: int, text: str):
+    def damage(path: Path) -> None:
+        lines = path.read_text().splitlines()
+        lines[line] = text
+        path.write_text("\n".join(lines) + "\n")
+
+    return damage
+
+
+def _appended(path: Path) -> None:
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([*lines, lines[-1]]) + "\n")
+
+
+def _record(line: int, **changes):
+    def damage(path: Path) -> None:
+        lines = path.read_text().splitlines()
+        data = json.loads(lines[line])
+        data.update(changes)
+        lines[line] = json.dumps(data)
+        path.write_text("\n".join(lines) + "\n")
+
+    return damage
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (_damaged(2, "{not json"), "line 3: not JSON"),
+        (_damaged(2, "[1, 2]"), "line 3: not a JSON object"),
+        (_record(2, kind="select"), "line 3: stage 1 kind 'select'"),
+        (_record(2, mazes=["M5_8x8_X9"]), "line 3: .*not a list of 2 maze strings"),
+        (_record(2, mazes=["M5_8x8_C1", "M1_1000x8_C1"]), "line 3: .*bad maze"),
+        (_record(3, choice=2), "line 4: choice 2 is not one of the 2 branches"),
+        (_record(3, choice="0"), "line 4: choice '0' is not a branch number"),
+        (_record(1, seconds=None), "line 2: seconds None"),
+        (
+            _damaged(5, '{"stage": 3, "kind": "select"}\n{"stage": 4}'),
+            "line 7: one decision too many",
+        ),
+    ],
+)
+def test_a_damaged_decisions_file_is_refused_by_name_and_nothing_changes(
+    tmp_path: Path, finished: Path, damage, message: str
+) -> None:
+    out = tmp_path / "run"
+    _copy(finished, out)
+    (out / "summary.json").unlink()
+    damage(out / DECISIONS_FILE)
+    before = snapshot(out)
+    with pytest.raises(AmazeError, match=f"decisions file .*{DECISIONS_FILE}.*{message}"):
+        ToyRun.resume(out)
+    assert snapshot(out) == before
+
+
+def test_a_damaged_branch_result_is_refused_by_name(tmp_path: Path, finished: Path) -> None:
+    out = tmp_path / "run"
+    _copy(finished, out)
+    result = out / "stages/stage-1/branch-1/result.json"
+    data = json.loads(result.read_text())
+    del data["lineage"]
+    result.write_text(json.dumps(data))
+    before = snapshot(out)
+    with pytest.raises(AmazeError, match=r"branch result .*branch-1/result\.json.* damaged"):
+        ToyRun.resume(out)
+    assert snapshot(out) == before
+
+
+def test_resume_of_a_finished_run_redoes_nothing(tmp_path: Path, finished: Path) -> None:
+    out = tmp_path / "run"
+    _copy(finished, out)
+    before = choices(out)
+    result = ToyRun.resume(out)
+    assert choices(out) == before
+    assert result.summary["env_steps"] == 6000
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"regime": "direct", "curator": "careful"}, "curator 'careful' is for the curriculum"),
+        ({"regime": "direct", "curator": None, "stages": 3}, "stages 3 is for the curriculum"),
+        ({"regime": "interpolation", "curator": "random"}, "interpolation regime's curator"),
+        ({"curator": "nobody"}, "unknown curator 'nobody' .*careful"),
+        ({"stages": 0}, "stages"),
+        ({"branches": 65}, "branches"),
+        ({"target": "M5_8x8_Q"}, "target 'M5_8x8_Q'"),
+        ({"curator_options": [1]}, "curator_options"),
+        ({"regime": "curricular"}, "regime 'curricular'"),
+    ],
+)
+def test_bad_regime_fields_are_refused_naming_the_value(changes: dict, message: str) -> None:
+    with pytest.raises(AmazeError, match=message):
+        ToyConfig.from_dict({**CONFIG, **changes})
+
+
+def test_a_curriculum_config_records_its_defaults() -> None:
+    config = ToyConfig.from_dict({"regime": "edhucat"})
+    assert (config.curator, config.stages, config.branches) == ("careful", 10, 3)
+    direct = ToyConfig.from_dict({})
+    assert (direct.curator, direct.stages, direct.branches) == (None, None, None)
+
+
+class MisbehavingCurator:
+    """Generates one maze too few, or selects something that is not a candidate."""
+
+    name = "misbehaving"
+
+    def __init__(self, context) -> None:
+        self.mode = context.options.get("mode")
+
+    def select(self, candidates):
+        return "the best one" if self.mode == "select" else candidates[0]
+
+    def generate(self, k, history):
+        return ["M1_5x5_U"] * (k - 1 if self.mode == "generate" else k)
+
+
+@pytest.mark.parametrize(
+    ("mode", "message"),
+    [
+        ("generate", "curator 'misbehaving' generated .*not a list of 2 maze strings"),
+        ("select", "curator 'misbehaving' selected 'the best one', not one of the candidates"),
+    ],
+)
+def test_a_misbehaving_curator_stops_the_run_with_a_clear_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, mode: str, message: str
+) -> None:
+    monkeypatch.setitem(
+        curators.BUILTIN_CURATORS,
+        "misbehaving",
+        "tests.amaze.runs.test_curriculum:MisbehavingCurator",
+    )
+    config = {**CONFIG, "curator": "misbehaving", "curator_options": {"mode": mode}}
+    with pytest.raises(AmazeError, match=message):
+        ToyRun.fresh(config, tmp_path / "run")
+    # What was decided before the error is kept, and the run can resume.
+    assert decisions(tmp_path / "run")[0]["kind"] == "generate"
+
+
+def test_the_decision_log_appends_whole_lines(tmp_path: Path, finished: Path) -> None:
+    log = DecisionLog(tmp_path / DECISIONS_FILE)
+    recorded = DecisionLog(finished / DECISIONS_FILE).read(3, 2, AmazeError)
+    for decision in recorded[:3]:
+        log.append(decision)
+    assert log.read(3, 2, AmazeError) == recorded[:3]
+    assert (tmp_path / DECISIONS_FILE).read_text().count("\n") == 3
+
+
+def _branches(folder: Path) -> list[Path]:
+    return sorted(p.parent for p in folder.glob("stages/stage-*/branch-*/result.json"))
+
+
+def _copy(source: Path, target: Path) -> None:
+    import shutil
+
+    shutil.copytree(source, target)

@@ -219,10 +219,7 @@ def _record(line: int, **changes):
         (_record(3, choice=2), "line 4: choice 2 is not one of the 2 branches"),
         (_record(3, choice="0"), "line 4: choice '0' is not a branch number"),
         (_record(1, seconds=None), "line 2: seconds None"),
-        (
-            _damaged(5, '{"stage": 3, "kind": "select"}\n{"stage": 4}'),
-            "line 7: one decision too many",
-        ),
+        (_appended, "line 7: one decision too many"),
     ],
 )
 def test_a_damaged_decisions_file_is_refused_by_name_and_nothing_changes(

@@ -32,7 +32,8 @@ agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_
   when there was one candidate, ``replayed`` when it came from another run;
 * ``stages/stage-<s>/branch-<b>/``: ``agent/`` (the learner after its
   training, saved by the trainer), ``result.json`` (the candidate: mazes,
-  results per maze and rotation on every maze of the stage, lineage, steps,
+  results per maze and rotation on every maze of the stage, in branch order,
+  lineage, steps,
   seconds; written last, so a branch with a result is finished),
   ``trajectory.png`` (the agent on its maze) and, while it trains,
   ``checkpoint/`` (the learner mid-session);
@@ -361,13 +362,15 @@ def _candidate_from_dict(data: Mapping[str, Any], folder: Path) -> Candidate:
     """A candidate read from ``result.json`` (any missing or ill-typed key raises)."""
     mazes = tuple(str(m) for m in data["mazes"])
     results = [MazeResults.from_dict(r) for r in data["results"]]
-    own = tuple(r for r in results if r.maze in mazes)
+    branch = int(data["branch"])  # results come in branch order: two branches may share a maze
+    if not 0 <= branch < len(results) or results[branch].maze not in mazes:
+        raise ValueError(f"branch {branch} has no results of its own maze")
     return Candidate(
         stage=int(data["stage"]),
-        branch=int(data["branch"]),
+        branch=branch,
         mazes=mazes,
-        own=own,
-        others=tuple(r for r in results if r.maze not in mazes),
+        own=(results[branch],),
+        others=tuple(r for i, r in enumerate(results) if i != branch),
         lineage=tuple(int(b) for b in data["lineage"]),
         env_steps=int(data["env_steps"]),
         seconds=float(data["seconds"]),

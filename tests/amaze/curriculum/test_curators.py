@@ -363,3 +363,22 @@ def test_risky_picks_the_best_on_the_hardest_maze() -> None:
         make_curator("risky", context(PAPER_TRAINING_MAZE)).select(stage_of(mazes, table)).branch
         == 2
     )
+
+
+@pytest.mark.parametrize("name", STRATEGIES)
+def test_a_run_plays_each_strategy_to_the_end(name: str, tmp_path) -> None:
+    from tests.amaze.runs.toy_curriculum import ToyConfig, ToyRun
+
+    config = ToyConfig(
+        regime="edhucat",
+        curator=name,
+        stages=3,
+        branches=2,
+        budget_steps=1500,
+        target="M4_9x9_C1_l.25_L.25_t.5_T.5",
+    )
+    result = ToyRun.fresh(config, tmp_path / "run")
+    assert result.summary["curator"] == name and len(result.summary["final_lineage"]) == 3
+    for stage in result.summary["curriculum"]:
+        for maze in stage["mazes"]:
+            assert_canonical(maze)

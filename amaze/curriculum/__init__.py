@@ -7,9 +7,25 @@
 * :mod:`~amaze.curriculum.genome`: the maze genome of curators: mutation
   operators on maze strings (:class:`MazeGenome`), a difficulty order
   (:func:`difficulty`, :func:`harder_or_equal`) and a distance
-  (:func:`maze_distance`).
+  (:func:`maze_distance`);
+* :mod:`~amaze.curriculum.curators`: the curator protocol and registry
+  (:func:`make_curator`, :func:`curator_names`, plug-ins under the
+  ``amaze.curators`` entry points); the curators themselves are in
+  :mod:`~amaze.curriculum.strategies` (careful, moderate, risky, random,
+  interpolation) and :mod:`~amaze.curriculum.human` (a person at a terminal).
 """
 
+from amaze.curriculum.curators import (
+    Candidate,
+    Curator,
+    CuratorContext,
+    CuratorError,
+    History,
+    MazeResults,
+    StageRecord,
+    curator_names,
+    make_curator,
+)
 from amaze.curriculum.genome import (
     DifficultyProfile,
     GenomeError,
@@ -25,17 +41,26 @@ from amaze.curriculum.regimes import REGIMES, Stage, regime_stages, stage_end
 
 __all__ = [
     "REGIMES",
+    "Candidate",
+    "Curator",
+    "CuratorContext",
+    "CuratorError",
     "DifficultyProfile",
     "GenomeError",
+    "History",
     "InterpolationError",
     "MazeGenome",
+    "MazeResults",
     "SignSet",
     "Stage",
+    "StageRecord",
+    "curator_names",
     "curriculum",
     "difficulty",
     "difficulty_profile",
     "harder_or_equal",
     "interpolate",
+    "make_curator",
     "maze_distance",
     "regime_stages",
     "stage_end",

@@ -1,10 +1,12 @@
 """``curriculum.png``: a whole curriculum at a glance.
 
 One row per stage, one column per branch: each branch's maze as a thumbnail,
-captioned with its success rate and R̄ on its own maze's 4 rotations. The
-branch selected to go on is framed, and lines join it to the branches of
-the next stage it was copied into, so the lineage of the final agent reads
-from top to bottom.
+captioned with its success rate and R̄ on its own maze's 4 rotations, the
+maze's size and sign kinds (C clues, L lures, T traps, U unicursive) and the
+steps the branch trained for; the row's label gives the stage's steps. The
+branch selected to go on is framed in red, and lines join it to the branches
+of the next stage it was copied into, so the lineage of the final agent reads
+from top to bottom; the final choice is framed in green and marked "final".
 """
 
 from __future__ import annotations
@@ -24,9 +26,10 @@ __all__ = ["render_curriculum", "save_curriculum_png"]
 #: Side of a maze thumbnail, in pixels (about).
 THUMBNAIL = 112
 PAD = 14
-CAPTION = 34
+CAPTION = 47
 LABEL = 64
 SELECTED = (214, 39, 40)
+FINAL = (17, 128, 64)
 LINEAGE = (31, 119, 180)
 TEXT = (30, 30, 30)
 
@@ -36,6 +39,20 @@ def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
         return ImageFont.load_default(size=size)
     except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType
         return ImageFont.load_default()
+
+
+def _count(steps: int) -> str:
+    """A step count in a few characters: 950, 12.3k, 4.1M."""
+    for size, unit in ((1e6, "M"), (1e3, "k")):
+        if steps >= size:
+            return f"{steps / size:.1f}{unit}"
+    return str(steps)
+
+
+def _fields(spec: MazeSpec) -> str:
+    """The maze's size and sign kinds, e.g. ``20x20 CLT`` or ``5x5 U``."""
+    kinds = "".join(k for k, on in (("C", spec.clue), ("L", spec.lure), ("T", spec.trap)) if on)
+    return f"{spec.width}x{spec.height} {'U' if spec.unicursive else ''}{kinds}".rstrip()
 
 
 def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.Image:
@@ -59,6 +76,9 @@ def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.
     for row, record in enumerate(records):
         y_label = top + row * cell_h + THUMBNAIL // 2 - 7
         draw.text((PAD, y_label), f"stage {record.stage}", fill=TEXT, font=small)
+        spent = sum(c.env_steps for c in record.candidates)
+        draw.text((PAD, y_label + 14), f"{_count(spent)} steps", fill=TEXT, font=small)
+        final = row == len(records) - 1
         for candidate in record.candidates:
             x0, y0, x1, y1 = box(row, candidate.branch)
             maze = candidate.mazes[0]
@@ -68,10 +88,15 @@ def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.
             thumbnail.thumbnail((THUMBNAIL, THUMBNAIL))
             image.paste(thumbnail, (x0 + (THUMBNAIL - thumbnail.width) // 2, y0))
             if record.selected == candidate.branch:
-                draw.rectangle((x0 - 4, y0 - 4, x1 + 3, y1 + 3), outline=SELECTED, width=3)
+                colour = FINAL if final else SELECTED
+                draw.rectangle((x0 - 4, y0 - 4, x1 + 3, y1 + 3), outline=colour, width=3)
+                if final:
+                    draw.text((x1 - 28, y1 + 17), "final", fill=FINAL, font=small)
             caption = f"b{candidate.branch}: success {candidate.success_rate:.2f}"
             draw.text((x0, y1 + 4), caption, fill=TEXT, font=small)
             draw.text((x0, y1 + 17), f"Rbar {candidate.mean_reward:+.2f}", fill=TEXT, font=small)
+            details = f"{_fields(spec)}, {_count(candidate.env_steps)} st"
+            draw.text((x0, y1 + 30), details, fill=TEXT, font=small)
         if row + 1 < len(records) and record.selected is not None:
             px0, _, px1, py1 = box(row, record.selected)
             for child in records[row + 1].candidates:

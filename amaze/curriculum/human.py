@@ -1,0 +1,137 @@
+"""The terminal curator: a person makes the curriculum's decisions at the keyboard.
+
+``--curator human`` asks, at every stage:
+
+* **select**: every candidate's numbers (success, R̄ and steps per rotation
+  on its own maze; its success and R̄ on the other branches' mazes; its
+  lineage, the steps it spent, whether it converged) and the paths of its
+  trajectory pictures; then a branch number.
+* **generate**: the parent's maze and the target, then ``k`` maze strings, one
+  at a time. Each is checked (:meth:`MazeSpec.from_string
+  <amaze.maze.spec.MazeSpec.from_string>`; the parser's message is shown and
+  the question asked again); an empty line takes the suggestion shown (the
+  parent's maze with a new seed).
+
+Bad typing never ends the run: the question is asked again. The end of the
+input (Ctrl-D) raises :class:`~amaze.curriculum.curators.CuratorError`; the
+decisions already made are in ``decisions.jsonl`` and a resumed run asks
+only the remaining ones.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from typing import TextIO
+
+from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
+from amaze.curriculum.genome import new_seed
+from amaze.errors import one_line
+from amaze.maze.spec import MazeSpec
+
+__all__ = ["TerminalCurator"]
+
+
+def _flags(values: Sequence[bool]) -> str:
+    return " ".join("yes" if v else "no " for v in values)
+
+
+def _numbers(values: Sequence[float], form: str = "+.2f") -> str:
+    return " ".join(format(v, form) for v in values)
+
+
+class TerminalCurator:
+    """A person at a terminal (see the module docstring); streams injectable for tests."""
+
+    name = "human"
+
+    def __init__(
+        self,
+        context: CuratorContext,
+        input: TextIO | None = None,
+        output: TextIO | None = None,
+    ) -> None:
+        self.context = context
+        self.input = input if input is not None else sys.stdin
+        self.output = output if output is not None else sys.stdout
+
+    # -- the protocol -------------------------------------------------------------
+
+    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+        stage = candidates[0].stage if candidates else "?"
+        self._say(f"\n== stage {stage}: choose the branch that goes on ==")
+        for candidate in candidates:
+            self._say(self.describe(candidate))
+        by_branch = {c.branch: c for c in candidates}
+        choices = ", ".join(str(b) for b in by_branch)
+        while True:
+            answer = self._ask(f"branch ({choices}): ").strip()
+            try:
+                return by_branch[int(answer)]
+            except (ValueError, KeyError):
+                self._say(f"  {answer!r} is not one of the branches {choices}")
+
+    def generate(self, k: int, history: History) -> list[str]:
+        parent = history.mazes[0]
+        self._say(f"\n== stage {history.stage}: {k} maze(s) for the next branches ==")
+        self._say(f"parent's maze: {parent}")
+        self._say(f"target:        {self.context.target}")
+        rng = self.context.rng(history.stage, "suggest")
+        mazes = []
+        for branch in range(k):
+            suggestion = new_seed(MazeSpec.from_string(parent), rng).to_string()
+            mazes.append(self._maze(branch, k, suggestion))
+        return mazes
+
+    # -- helpers --------------------------------------------------------------------
+
+    @staticmethod
+    def describe(candidate: Candidate) -> str:
+        """What a person sees of a candidate, as lines of text."""
+        lines = [
+            f"branch {candidate.branch}: success {candidate.success_rate:.2f},"
+            f" R̄ {candidate.mean_reward:+.3f} on its own maze;"
+            f" overall success {candidate.overall_success_rate:.2f},"
+            f" R̄ {candidate.overall_mean_reward:+.3f}"
+        ]
+        for result in candidate.own:
+            lines.append(f"  own {result.maze}")
+            lines.append(f"    reached {_flags(result.success)}")
+            lines.append(f"    R̄       {_numbers(result.paper_reward)}")
+            lines.append(f"    steps   {' '.join(str(s) for s in result.steps)}")
+        for result in candidate.others:
+            lines.append(
+                f"  on {result.maze}: success {result.success_rate:.2f},"
+                f" R̄ {result.mean_reward:+.3f}"
+            )
+        lines.append(
+            f"  lineage {list(candidate.lineage)}, {candidate.env_steps} steps"
+            f" ({candidate.lineage_steps} with its lineage), {candidate.seconds:.1f} s,"
+            f" {'converged' if candidate.converged else 'not converged'}"
+        )
+        lines.extend(f"  picture {path}" for path in candidate.pictures)
+        return "\n".join(lines)
+
+    def _maze(self, branch: int, k: int, suggestion: str) -> str:
+        while True:
+            answer = self._ask(f"maze {branch + 1}/{k} [empty: {suggestion}]: ").strip()
+            if not answer:
+                return suggestion
+            try:
+                return MazeSpec.from_string(answer).to_string()
+            except (ValueError, TypeError) as problem:
+                self._say(f"  bad maze {answer!r}: {one_line(problem)}")
+
+    def _say(self, text: str) -> None:
+        print(text, file=self.output, flush=True)
+
+    def _ask(self, prompt: str) -> str:
+        self.output.write(prompt)
+        self.output.flush()
+        line = self.input.readline()
+        if not line:
+            raise CuratorError(
+                "the human curator's input ended (end of file) before the decision was made;"
+                " the decisions made so far are recorded: resume the run to go on"
+            )
+        return line

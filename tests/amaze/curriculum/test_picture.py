@@ -1,0 +1,38 @@
+"""curriculum.png renders a curriculum, its selections and its final choice."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from amaze.curriculum.curators import Candidate, MazeResults, StageRecord
+from amaze.curriculum.picture import FINAL, SELECTED, render_curriculum, save_curriculum_png
+
+
+def candidate(stage: int, branch: int, maze: str) -> Candidate:
+    result = MazeResults(maze, (True, False, True, False), (0.5,) * 4, (10,) * 4)
+    return Candidate(stage, branch, (maze,), (result,), (), (branch,), 1500, 1.0, False, 1500)
+
+
+def records() -> list[StageRecord]:
+    first = StageRecord(0, ("M1_5x5_U",), (candidate(0, 0, "M1_5x5_U"),), selected=0)
+    mazes = ("M2_8x8_C1", "M3_6x9_C1_l.25_L.25")
+    second = StageRecord(1, mazes, tuple(candidate(1, b, m) for b, m in enumerate(mazes)), 1)
+    return [first, second]
+
+
+def colour_count(image, colour) -> int:
+    return int(np.all(np.asarray(image) == colour, axis=-1).sum())
+
+
+def test_a_curriculum_renders_with_its_selections_and_final_choice(tmp_path: Path) -> None:
+    image = render_curriculum(records(), title="toy")
+    assert image.width > 200 and image.height > 300
+    assert colour_count(image, SELECTED) > 100  # stage 0's choice
+    assert colour_count(image, FINAL) > 100  # the last stage's choice
+    path = save_curriculum_png(records(), tmp_path / "out" / "curriculum.png")
+    assert path.read_bytes().startswith(b"\x89PNG")
+    # an unfinished curriculum (no final choice yet) has no final frame
+    unfinished = [*records()[:1], StageRecord(1, records()[1].mazes, records()[1].candidates)]
+    assert colour_count(render_curriculum(unfinished), FINAL) == 0

@@ -337,3 +337,22 @@ def _copy(source: Path, target: Path) -> None:
     import shutil
 
     shutil.copytree(source, target)
+
+
+def test_branches_that_share_a_maze_keep_their_own_results_on_resume(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(
+        curators.BUILTIN_CURATORS,
+        "misbehaving",
+        "tests.amaze.runs.test_curriculum:MisbehavingCurator",
+    )
+    out = tmp_path / "run"
+    ToyRun.fresh({**CONFIG, "curator": "misbehaving"}, out)  # every branch: M1_5x5_U
+    run = ToyRun(out, ToyRun.read_config(out))
+    for branch in range(2):
+        folder = out / f"stages/stage-2/branch-{branch}"
+        data = json.loads((folder / "result.json").read_text())
+        candidate = run._read_candidate(folder)
+        assert candidate.own[0].to_dict() == data["results"][branch]
+        assert [r.to_dict() for r in candidate.others] == [data["results"][1 - branch]]

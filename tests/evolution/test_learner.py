@@ -17,6 +17,7 @@ from evolution.agent_file import load_agent, read_agent
 from evolution.algorithms import make_algorithm
 from evolution.learner import LEARNER_FILE, EvolutionLearner, load_learner
 from evolution.neat.compile import genome_to_arrays
+from evolution.population import PopulationEvaluator
 
 TRIVIAL = rotations("M0_5x5_U")
 SMALL = rotations("M3_6x6_C1")
@@ -154,8 +155,14 @@ def test_a_new_session_has_its_own_champion() -> None:
     learner = _learner()
     learner.train(TRIVIAL, 3000)
     first = learner.champion
+    params, _ = learner.algorithm.champion
+    learner.algorithm._champion = (params, 100.0)  # unbeatable on any maze
     learner.train(SMALL, 3000)
     second = learner.champion
+    assert second is not None and second.fitness < 100.0
+    # the champion is the best of the new session, scored on the new mazes
+    played = PopulationEvaluator(list(SMALL), "DD").evaluate(learner.agent())
+    assert played.fitness[0] == second.fitness
     assert first is not None and second is not None
     assert first.mazes == tuple(TRIVIAL) and second.mazes == tuple(SMALL)
     assert second.fitness == learner.last_session.champion_fitness

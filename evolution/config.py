@@ -55,7 +55,8 @@ class EvolveConfig(CurriculumConfig):
     algo: str = option("cmaes", "search algorithm", choices=tuple(ALGORITHMS))
     mazes: list[str] = option(
         default_factory=lambda: [PAPER_TRAINING_MAZE],
-        help="training mazes, each played in its 4 rotations (default: the paper's)",
+        help="training mazes of the direct regime, each played in its 4 rotations"
+        " (default: the paper's)",
     )
     fitness: str = option(
         "paper_reward", "mean of this over the training episodes", choices=FITNESS

@@ -16,8 +16,12 @@
 * :mod:`evolution.algorithms`: the ask / tell interface every search
   algorithm offers the run loop (:class:`~evolution.algorithms.SearchAlgorithm`)
   and the registry that builds one by name;
-* :mod:`evolution.cmaes`, :mod:`evolution.run`, :mod:`evolution.cli`: the
-  algorithms, run folders with checkpoint/resume, and the ``amaze-evolve`` command.
+* :mod:`evolution.cmaes`, :mod:`evolution.config`, :mod:`evolution.run`,
+  :mod:`evolution.cli`: the algorithms, the run config, run folders with
+  checkpoint/resume, and the ``amaze-evolve`` command;
+* :mod:`evolution.learner`, :mod:`evolution.curriculum`: evolution as a
+  curriculum learner, and the curriculum regimes (``--regime edhucat``,
+  ``--regime interpolation``) of ``amaze-evolve``.
 """
 
 from __future__ import annotations

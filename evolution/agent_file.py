@@ -43,6 +43,7 @@ __all__ = [
     "FORMAT_VERSION",
     "AgentFileError",
     "load_agent",
+    "policy_from_agent_arrays",
     "read_agent",
     "save_agent",
     "save_network_agent",
@@ -218,34 +219,44 @@ def load_agent(path: str | os.PathLike) -> Any:
     of one; NEAT-like genomes (``neat``) are built by ``evolution.neat.policy_from_arrays``.
     """
     arrays, metadata = read_agent(path)
+    return policy_from_agent_arrays(arrays, metadata, where=f"agent file '{path}'")
+
+
+def policy_from_agent_arrays(
+    arrays: Mapping[str, np.ndarray], metadata: Mapping[str, Any], where: str = "agent"
+) -> Any:
+    """The policy of an agent's ``arrays`` and ``metadata`` (``architecture``, ``robot``).
+
+    What :func:`load_agent` does once the file is read; an agent held in
+    memory (a search algorithm's champion arrays) is built the same way.
+    Inconsistent arrays raise :class:`AgentFileError` starting with ``where``.
+    """
+    arrays = dict(arrays)
     architecture = metadata["architecture"]
     kind = architecture["type"]
     try:
         robot = as_robot(metadata.get("robot", ""))
     except (RobotStringError, TypeError, AttributeError):
         raise AgentFileError(
-            f"agent file '{path}': robot {metadata.get('robot')!r} is not a robot string"
+            f"{where}: robot {metadata.get('robot')!r} is not a robot string"
         ) from None
     if kind == "mlp":
         try:
             spec = NetworkSpec.from_dict(architecture)
         except EvolutionConfigError as error:
-            raise AgentFileError(f"agent file '{path}': {error}") from None
+            raise AgentFileError(f"{where}: {error}") from None
         if spec.robot_info != robot:
             raise AgentFileError(
-                f"agent file '{path}': the network is for {spec.robot} robots,"
-                f" the metadata says {robot}"
+                f"{where}: the network is for {spec.robot} robots, the metadata says {robot}"
             )
         params = arrays.get("params")
         if params is None or params.shape != (spec.n_params,) or params.dtype.kind != "f":
             found = "none" if params is None else f"{params.dtype} of shape {params.shape}"
-            raise AgentFileError(
-                f"agent file '{path}': 'params' must be {spec.n_params} floats, got {found}"
-            )
+            raise AgentFileError(f"{where}: 'params' must be {spec.n_params} floats, got {found}")
         try:
             return spec.population(params[None])
         except EvolutionConfigError as error:
-            raise AgentFileError(f"agent file '{path}': {error}") from None
+            raise AgentFileError(f"{where}: {error}") from None
     if kind == "neat":
         from evolution.neat import policy_from_arrays
 
@@ -254,7 +265,5 @@ def load_agent(path: str | os.PathLike) -> Any:
         except AgentFileError:
             raise
         except (EvolutionConfigError, KeyError, ValueError, IndexError) as error:
-            raise AgentFileError(f"agent file '{path}': {error}") from None
-    raise AgentFileError(
-        f"agent file '{path}': unknown architecture type {kind!r} (expected 'mlp' or 'neat')"
-    )
+            raise AgentFileError(f"{where}: {error}") from None
+    raise AgentFileError(f"{where}: unknown architecture type {kind!r} (expected 'mlp' or 'neat')")

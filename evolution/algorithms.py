@@ -37,6 +37,9 @@ class SearchAlgorithm(Protocol):
     ``tell(candidates, fitness)`` hands back their fitness (maximised), after
     which the algorithm updates its champion and statistics and prepares the
     next generation. The model is pycma's ``interfaces.OOOptimizer``.
+    ``reseed`` and ``forget_champion`` serve curricula: branches copied from
+    one state draw from their own random streams, and a stage's new mazes
+    start a new champion.
 
     **Algorithms never call the simulator**: evaluation is the caller's
     business (an evaluation backend, local or distributed), so the same
@@ -86,6 +89,25 @@ class SearchAlgorithm(Protocol):
 
     def stats(self) -> dict[str, float]:
         """The last generation's statistics (best, mean...), ``{}`` before the first tell."""
+        ...
+
+    def reseed(self, seed: int) -> None:
+        """Replace the algorithm's own random streams by fresh ones seeded with ``seed``.
+
+        Everything else (population, strategy, champion) is kept: copies of
+        one state reseeded differently (the branches of a curriculum) draw
+        independently from then on, and copies reseeded alike draw alike.
+        """
+        ...
+
+    def forget_champion(self) -> None:
+        """Forget the champion: the next ``tell`` starts a new one.
+
+        For a change of mazes (a curriculum's next stage): fitness told so
+        far no longer compares with fitness told from then on, so neither the
+        champion nor the algorithm's other records of past fitness (NEAT's
+        species progress) should outrank the new mazes' candidates.
+        """
         ...
 
 

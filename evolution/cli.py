@@ -6,6 +6,8 @@
     amaze-evolve --algo neat --mazes M4_10x10_C1,M5_10x10_U --budget-seconds 600 --out runs/neat
     amaze-evolve --resume runs/cma
     amaze-evolve --algo cmaes --seed 0 --replicates 5 --out runs/cma   # runs/cma/seed-0 ... seed-4
+    amaze-evolve --regime edhucat --curator random --stages 3 --out runs/edh   # a curriculum
+    amaze-evolve --replay runs/edh --out runs/edh-again   # the same curriculum decisions again
 
 The options are the fields of :class:`~evolution.run.EvolveConfig` (``--help``
 lists them) plus the run options of every training command

@@ -458,6 +458,21 @@ class CMAESAlgorithm:
             else:
                 self._stopped = True
 
+    def reseed(self, seed: int) -> None:
+        """Fresh random streams seeded with ``seed``: numpy's state for cma and the mean generator.
+
+        Candidates asked but not told are dropped (they came from the old
+        stream); the strategy (mean, covariance, step size) is kept.
+        """
+        self.seed = check_integer("seed", seed, error=EvolutionConfigError)
+        self._rng = np.random.default_rng(self.seed)
+        self._np_state = np.random.RandomState(self.seed).get_state()
+        self._asked = None
+
+    def forget_champion(self) -> None:
+        """Forget the champion: the next ``tell`` starts a new one (see the protocol)."""
+        self._champion = None
+
     def stats(self) -> dict[str, float]:
         """The last generation's statistics, ``{}`` before the first tell.
 

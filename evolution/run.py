@@ -61,7 +61,6 @@ where it stops depends on the machine's speed.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 from collections.abc import Mapping
@@ -72,122 +71,22 @@ from typing import Any
 
 import numpy as np
 
-from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.maze import rotations
-from amaze.runs.checkpoint import Allowlist, read_checkpoint, write_checkpoint
-from amaze.runs.config import RunConfig, option
+from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
+from amaze.runs.config import RunConfig
 from amaze.runs.folder import ProgressLog
 from amaze.runs.lifecycle import Run, RunResult
-from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
-from evolution.algorithms import ALGORITHMS, SearchAlgorithm, algorithm_class, make_algorithm
-from evolution.population import FITNESS, EvaluationBackend, PopulationEvaluator
+from evolution.algorithms import SearchAlgorithm, make_algorithm
+from evolution.config import CHECKPOINT_ALLOWLIST, EvolveConfig
+from evolution.population import EvaluationBackend, PopulationEvaluator
 
 __all__ = ["EvolutionRun", "EvolveConfig", "evolve", "resume"]
 
 PROGRESS_FIELDS = ("generation", "steps", "seconds", "best", "mean", "champion", "eval_seconds")
 #: Version of the checkpoint layout; a checkpoint of another version is refused.
 CHECKPOINT_VERSION = 2
-#: What an evolution checkpoint may name (:mod:`amaze.runs.checkpoint`): the
-#: classes of the run's own libraries and the few functions they keep as values.
-CHECKPOINT_ALLOWLIST = Allowlist.of(
-    names=(
-        "_operator:eq",  # deap's HallOfFame compares individuals with it
-        "cma.evolution_strategy:_pass",
-        "cma.options_parameters:is_feasible",
-        "numpy.linalg:eigh",
-    ),
-    class_prefixes=("evolution.", "amaze.", "cma.", "deap."),
-)
-
-
-@dataclass
-class EvolveConfig(RunConfig):
-    """Everything that defines an evolution run (stored as ``config.json``).
-
-    ``budget_steps``, ``budget_seconds`` and ``max_generations`` may each be
-    ``None`` (no limit), not all three.
-    """
-
-    error = EvolutionConfigError
-    options_field = "algorithm"
-
-    algo: str = option("cmaes", "search algorithm", choices=tuple(ALGORITHMS))
-    mazes: list[str] = option(
-        default_factory=lambda: [PAPER_TRAINING_MAZE],
-        help="training mazes, each played in its 4 rotations (default: the paper's)",
-    )
-    fitness: str = option(
-        "paper_reward", "mean of this over the training episodes", choices=FITNESS
-    )
-    budget_steps: int | None = option(3_000_000, "environment steps of the scored episodes")
-    budget_seconds: float | None = option(None, "wall-clock seconds")
-    max_generations: int | None = option(None, "generations")
-    checkpoint_seconds: float = option(
-        10.0, "seconds of run time between checkpoints (0: after every generation)"
-    )
-    algorithm: dict[str, Any] = option(
-        default_factory=dict,
-        help="the algorithm's options (CMAESConfig or NeatConfig fields)",
-        command_line=False,
-    )
-
-    def validate(self) -> EvolveConfig:
-        """Check every field; raise :class:`EvolutionConfigError` naming the bad value."""
-        super().validate()
-        algorithm_class(self.algo)  # an unknown name is refused, naming the choices
-        if isinstance(self.mazes, str):
-            self.mazes = [m for m in self.mazes.split(",") if m]
-        if not isinstance(self.mazes, list) or not self.mazes:
-            raise EvolutionConfigError(f"mazes {self.mazes!r} is not a non-empty list of strings")
-        if self.fitness not in FITNESS:
-            raise EvolutionConfigError(
-                f"fitness {self.fitness!r} is not one of {', '.join(FITNESS)}"
-            )
-        for name in ("budget_steps", "max_generations"):
-            value = getattr(self, name)
-            if value is not None:
-                setattr(self, name, check_integer(name, value, minimum=1, error=self.error))
-        if self.budget_seconds is not None:
-            self.budget_seconds = check_number(
-                "budget_seconds",
-                self.budget_seconds,
-                minimum=0,
-                strict_minimum=True,
-                error=self.error,
-            )
-        if (self.budget_steps, self.budget_seconds, self.max_generations) == (None, None, None):
-            raise EvolutionConfigError("a run needs a budget: budget_steps or budget_seconds")
-        self.checkpoint_seconds = check_number(
-            "checkpoint_seconds", self.checkpoint_seconds, minimum=0, error=self.error
-        )
-        if not isinstance(self.algorithm, dict):
-            raise EvolutionConfigError(f"algorithm {self.algorithm!r} is not a JSON object")
-        return self
-
-    @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        """The config's options, and ``--population-size`` (an option of every algorithm)."""
-        super().add_arguments(parser)
-        parser.add_argument(
-            "--population-size",
-            type=int,
-            metavar="N",
-            help="individuals per generation (algorithm option)",
-        )
-
-    @classmethod
-    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
-        """``--budget-seconds`` alone is a wall-clock budget; ``--population-size`` is an option."""
-        if args.budget_seconds is not None and args.budget_steps is None:
-            data.setdefault("budget_steps", None)
-        if getattr(args, "population_size", None) is not None:
-            data["algorithm"] = {
-                **data.get("algorithm", {}),
-                "population_size": args.population_size,
-            }
-        return data
 
 
 @dataclass
@@ -225,6 +124,16 @@ class EvolutionRun(Run):
         return PopulationEvaluator(c.mazes, c.robot, fitness=c.fitness, rotations=True)
 
     # -- the lifecycle's hooks --------------------------------------------------
+
+    @classmethod
+    def run_class_for(cls, config: RunConfig) -> type[Run]:
+        """This class for the direct regime, :class:`~evolution.curriculum.EvolutionCurriculumRun`
+        for the curriculum ones."""
+        if isinstance(config, EvolveConfig) and config.is_curriculum:
+            from evolution.curriculum import EvolutionCurriculumRun
+
+            return EvolutionCurriculumRun
+        return cls
 
     def start(self) -> None:
         c = self.config

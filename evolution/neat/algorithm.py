@@ -178,6 +178,23 @@ class NeatAlgorithm:
             return {}
         return {key: float(value) for key, value in self.logbook[-1].items()}
 
+    def reseed(self, seed: int) -> None:
+        """A fresh state of ``random`` seeded with ``seed`` (the only stream NEAT draws from)."""
+        self.seed = int(seed)
+        self._random_state = random.Random(self.seed).getstate()
+
+    def forget_champion(self) -> None:
+        """Empty the hall of fame and restart the species' progress records.
+
+        Each species' best fitness was measured on the old mazes: kept, it
+        would make every species look stagnant on harder new mazes (and have
+        them removed), so stagnation is counted afresh from the next ``tell``.
+        """
+        self.hall_of_fame.clear()
+        for s in self.species:
+            s.best_fitness = -math.inf
+            s.last_improved = self._generation
+
     # -- one generation ----------------------------------------------------
 
     def _next_generation(self) -> None:

@@ -1,0 +1,151 @@
+"""The evolution run config (``config.json``, the ``amaze-evolve`` options) and checkpoint rules.
+
+:class:`EvolveConfig` defines a run of either loop: the direct regime
+(:class:`evolution.run.EvolutionRun`, generations on fixed mazes) and the
+curriculum regimes (:class:`evolution.curriculum.EvolutionCurriculumRun`).
+:data:`CHECKPOINT_ALLOWLIST` says what an evolution checkpoint (a run's
+``state.pkl``, a learner's ``learner.pkl``) may name when it is read back.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from typing import Any
+
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE
+from amaze.runs.checkpoint import Allowlist
+from amaze.runs.config import option
+from amaze.runs.curriculum import CurriculumConfig
+from amaze.validation import check_integer, check_number
+from evolution import EvolutionConfigError
+from evolution.algorithms import ALGORITHMS, algorithm_class
+from evolution.population import FITNESS
+
+__all__ = ["CHECKPOINT_ALLOWLIST", "EvolveConfig"]
+
+#: What an evolution checkpoint may name (:mod:`amaze.runs.checkpoint`): the
+#: classes of the run's own libraries and the few functions they keep as values.
+CHECKPOINT_ALLOWLIST = Allowlist.of(
+    names=(
+        "_operator:eq",  # deap's HallOfFame compares individuals with it
+        "cma.evolution_strategy:_pass",
+        "cma.options_parameters:is_feasible",
+        "numpy.linalg:eigh",
+    ),
+    class_prefixes=("evolution.", "amaze.", "cma.", "deap."),
+)
+
+
+@dataclass
+class EvolveConfig(CurriculumConfig):
+    """Everything that defines an evolution run (stored as ``config.json``).
+
+    In the direct regime, ``budget_steps``, ``budget_seconds`` and
+    ``max_generations`` may each be ``None`` (no limit), not all three. In a
+    curriculum regime (``interpolation``, ``edhucat``: :mod:`evolution.curriculum`)
+    the budget is ``budget_steps`` alone and the mazes are the curriculum's,
+    leading to ``target``: ``budget_seconds``, ``max_generations`` and
+    ``mazes`` are refused there.
+    """
+
+    error = EvolutionConfigError
+    options_field = "algorithm"
+
+    algo: str = option("cmaes", "search algorithm", choices=tuple(ALGORITHMS))
+    mazes: list[str] = option(
+        default_factory=lambda: [PAPER_TRAINING_MAZE],
+        help="training mazes of the direct regime, each played in its 4 rotations"
+        " (default: the paper's)",
+    )
+    fitness: str = option(
+        "paper_reward", "mean of this over the training episodes", choices=FITNESS
+    )
+    budget_steps: int | None = option(3_000_000, "environment steps of the scored episodes")
+    budget_seconds: float | None = option(None, "wall-clock seconds")
+    max_generations: int | None = option(None, "generations")
+    checkpoint_seconds: float = option(
+        10.0, "seconds of run time between checkpoints (0: after every generation)"
+    )
+    algorithm: dict[str, Any] = option(
+        default_factory=dict,
+        help="the algorithm's options (CMAESConfig or NeatConfig fields)",
+        command_line=False,
+    )
+
+    def validate(self) -> EvolveConfig:
+        """Check every field; raise :class:`EvolutionConfigError` naming the bad value."""
+        super().validate()
+        algorithm_class(self.algo)  # an unknown name is refused, naming the choices
+        if isinstance(self.mazes, str):
+            self.mazes = [m for m in self.mazes.split(",") if m]
+        if not isinstance(self.mazes, list) or not self.mazes:
+            raise EvolutionConfigError(f"mazes {self.mazes!r} is not a non-empty list of strings")
+        if self.fitness not in FITNESS:
+            raise EvolutionConfigError(
+                f"fitness {self.fitness!r} is not one of {', '.join(FITNESS)}"
+            )
+        for name in ("budget_steps", "max_generations"):
+            value = getattr(self, name)
+            if value is not None:
+                setattr(self, name, check_integer(name, value, minimum=1, error=self.error))
+        if self.budget_seconds is not None:
+            self.budget_seconds = check_number(
+                "budget_seconds",
+                self.budget_seconds,
+                minimum=0,
+                strict_minimum=True,
+                error=self.error,
+            )
+        if self.is_curriculum:
+            self._check_curriculum()
+        if (self.budget_steps, self.budget_seconds, self.max_generations) == (None, None, None):
+            raise EvolutionConfigError("a run needs a budget: budget_steps or budget_seconds")
+        self.checkpoint_seconds = check_number(
+            "checkpoint_seconds", self.checkpoint_seconds, minimum=0, error=self.error
+        )
+        if not isinstance(self.algorithm, dict):
+            raise EvolutionConfigError(f"algorithm {self.algorithm!r} is not a JSON object")
+        return self
+
+    def _check_curriculum(self) -> None:
+        """A curriculum's budget is its env steps, and its mazes lead to ``target``."""
+        regime = self.regime
+        for name in ("budget_seconds", "max_generations"):
+            if getattr(self, name) is not None:
+                raise EvolutionConfigError(
+                    f"{name} {getattr(self, name)!r} applies to the direct regime; the {regime}"
+                    " regime's budget is budget_steps"
+                )
+        if self.budget_steps is None:
+            raise EvolutionConfigError(
+                f"the {regime} regime needs budget_steps (its budget is environment steps)"
+            )
+        if self.mazes != [PAPER_TRAINING_MAZE]:
+            raise EvolutionConfigError(
+                f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"
+                f" {regime} regime makes its own mazes, leading to target (--target)"
+            )
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """The config's options, and ``--population-size`` (an option of every algorithm)."""
+        super().add_arguments(parser)
+        parser.add_argument(
+            "--population-size",
+            type=int,
+            metavar="N",
+            help="individuals per generation (algorithm option)",
+        )
+
+    @classmethod
+    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+        """``--budget-seconds`` alone is a wall-clock budget; ``--population-size`` is an option."""
+        if args.budget_seconds is not None and args.budget_steps is None:
+            data.setdefault("budget_steps", None)
+        if getattr(args, "population_size", None) is not None:
+            data["algorithm"] = {
+                **data.get("algorithm", {}),
+                "population_size": args.population_size,
+            }
+        return data

@@ -1,0 +1,187 @@
+"""Evolution in the curriculum regimes: run folder, replay, resume after a kill, refusals."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evolution import EvolutionConfigError
+from evolution.agent_file import load_agent, read_agent
+from evolution.cli import main
+from evolution.curriculum import EvolutionCurriculumRun
+from evolution.run import EvolutionRun, EvolveConfig
+from tests.run_folders import refused_resume, snapshot
+
+ROOT = Path(__file__).resolve().parents[2]
+#: A tiny edhucat run: 2 stages x 2 branches, a small CMA-ES population.
+ARGS = [
+    "--regime", "edhucat", "--curator", "random", "--stages", "2", "--branches", "2",
+    "--budget-steps", "60000", "--population-size", "8", "--checkpoint-seconds", "0",
+]  # fmt: skip
+
+
+def _decisions(out: Path) -> list[tuple]:
+    lines = (out / "decisions.jsonl").read_text().splitlines()
+    return [
+        (d["stage"], d["kind"], d.get("choice"), tuple(d.get("mazes", ())))
+        for d in map(json.loads, lines)
+    ]
+
+
+def _final_champion(out: Path) -> dict[str, np.ndarray]:
+    summary = json.loads((out / "summary.json").read_text())
+    stage, branch = len(summary["final_lineage"]) - 1, summary["final_lineage"][-1]
+    arrays, _ = read_agent(out / f"stages/stage-{stage}/branch-{branch}/agent/champion.npz")
+    return arrays
+
+
+def _same(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("edhucat") / "run"
+    assert main([*ARGS, "--out", str(out), "--no-progress"]) == 0
+    return out
+
+
+def test_an_edhucat_run_writes_its_folder(
+    finished: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for name in ("config.json", "decisions.jsonl", "progress.csv", "curriculum.png"):
+        assert (finished / name).stat().st_size > 0, name
+    assert [(s, k) for s, k, _, _ in _decisions(finished)] == [
+        (0, "generate"), (1, "select"), (1, "generate"), (2, "select"),
+    ]  # fmt: skip
+    for stage, branches in ((0, 1), (1, 2)):
+        for branch in range(branches):
+            folder = finished / f"stages/stage-{stage}/branch-{branch}"
+            for name in ("result.json", "trajectory.png", "agent/learner.pkl"):
+                assert (folder / name).exists(), folder / name
+            assert not (folder / "checkpoint").exists()
+            load_agent(folder / "agent" / "champion.npz")  # an agent file amaze run can play
+    summary = json.loads((finished / "summary.json").read_text())
+    assert summary["regime"] == "edhucat" and summary["curator"] == "random"
+    assert summary["algo"] == "cmaes" and summary["fitness_measure"] == "paper_reward"
+    assert summary["generations"] >= 3 and summary["lineage_generations"] >= 2
+    assert summary["policy_steps_per_second"] > 0
+    assert summary["env_steps"] >= 60000 * 0.9 and len(summary["curriculum"]) == 2
+    for key in ("success_rate", "normalized_reward", "champion_fitness", "final_lineage"):
+        assert key in summary
+    config = EvolveConfig.from_dict(json.loads((finished / "config.json").read_text()))
+    assert (config.regime, config.stages, config.branches) == ("edhucat", 2, 2)
+
+
+def test_replay_reaches_the_same_champion(finished: Path, tmp_path: Path) -> None:
+    out = tmp_path / "replay"
+    assert main(["--replay", str(finished), "--out", str(out), "--no-progress"]) == 0
+    assert _same(_final_champion(out), _final_champion(finished))
+    assert _decisions(out) == _decisions(finished)
+    assert json.loads((out / "config.json").read_text())["replay"] == str(finished)
+    assert (out / "replay.jsonl").exists()
+
+
+def test_resume_after_a_kill_mid_stage(finished: Path, tmp_path: Path) -> None:
+    out = tmp_path / "killed"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "evolution.cli", *ARGS, "--out", str(out), "--no-progress"],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 120
+    while not any(out.glob("stages/stage-1/branch-*/checkpoint/learner.pkl")):
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            pytest.fail("the run ended before it could be killed mid-stage")
+        time.sleep(0.002)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    assert not (out / "summary.json").exists()
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    assert _same(_final_champion(out), _final_champion(finished))
+    assert _decisions(out) == _decisions(finished)
+    ours, theirs = (json.loads((o / "summary.json").read_text()) for o in (out, finished))
+    for key in ("env_steps", "generations", "success_rate", "normalized_reward", "curriculum"):
+        assert ours[key] == theirs[key], key
+
+
+def test_a_corrupt_decisions_file_is_refused_on_resume(
+    finished: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def damage(path: Path) -> None:
+        lines = path.read_text().splitlines()
+        path.write_text("\n".join([lines[0], "{not json", *lines[2:]]) + "\n")
+
+    line = refused_resume(main, finished, tmp_path / "copy", "decisions.jsonl", damage, capsys)
+    assert "decisions.jsonl" in line and "line 2" in line
+
+
+def test_a_bad_curator_is_one_error_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = [*ARGS, "--curator", "nobody", "--out", str(tmp_path / "r")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "nobody" in err[0]
+    assert not (tmp_path / "r").exists()
+
+
+def test_bad_algorithm_options_fail_before_anything_is_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "algo.json").write_text(json.dumps({"sigma0": -1}))
+    argv = [*ARGS, "--config", str(tmp_path / "algo.json"), "--out", str(tmp_path / "r")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "sigma0" in err[0]
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize(
+    ("overrides", "bad"),
+    [
+        ({"budget_seconds": 60.0}, "budget_seconds 60.0 applies to the direct regime"),
+        ({"max_generations": 5}, "max_generations 5 applies to the direct regime"),
+        ({"budget_steps": None}, "needs budget_steps"),
+        ({"mazes": ["M1_5x5_C1"]}, "mazes 'M1_5x5_C1' apply to the direct regime"),
+    ],
+)
+def test_curriculum_config_refusals(overrides: dict, bad: str) -> None:
+    with pytest.raises(EvolutionConfigError, match=bad):
+        EvolveConfig.from_dict({"regime": "edhucat", "curator": "random", **overrides})
+
+
+def test_the_regime_chooses_the_run_class() -> None:
+    direct = EvolveConfig.from_dict({})
+    curriculum = EvolveConfig.from_dict({"regime": "interpolation"})
+    assert EvolutionRun.run_class_for(direct) is EvolutionRun
+    assert EvolutionRun.run_class_for(curriculum) is EvolutionCurriculumRun
+    assert (curriculum.curator, curriculum.branches) == ("interpolation", 1)
+    assert direct.to_dict()["regime"] == "direct" and direct.curator is None
+
+
+def test_neat_in_the_interpolation_regime(tmp_path: Path) -> None:
+    out = tmp_path / "neat"
+    argv = [
+        "--algo", "neat", "--regime", "interpolation", "--stages", "2",
+        "--budget-steps", "20000", "--population-size", "10", "--out", str(out), "--no-progress",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["algo"] == "neat" and summary["final_lineage"] == [0, 0]
+    _, metadata = read_agent(out / "stages/stage-1/branch-0/agent/champion.npz")
+    assert metadata["architecture"]["type"] == "neat"
+    before = snapshot(out)
+    assert main(["--replay", str(out), "--out", str(tmp_path / "again"), "--no-progress"]) == 0
+    assert snapshot(out) == before
+    assert _same(_final_champion(tmp_path / "again"), _final_champion(out))

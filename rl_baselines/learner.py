@@ -188,7 +188,7 @@ class SB3Learner:
         return outcome
 
     def branch(self, seed: int) -> SB3Learner:
-        """An independent copy (weights, optimiser state) drawing from streams seeded by ``seed``."""
+        """An independent copy (weights, optimiser state), its streams seeded by ``seed``."""
         with tempfile.TemporaryDirectory(prefix="sb3-branch-") as folder:
             path = Path(folder) / MODEL_FILE
             buffer = io.BytesIO()

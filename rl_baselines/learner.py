@@ -29,6 +29,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
@@ -97,8 +98,8 @@ class _SessionCallback(BaseCallback):
 class SB3Learner:
     """An SB3 model in training, as a curriculum drives it (see the module docstring).
 
-    ``seed`` seeds the model's random streams (SB3's ``set_random_seed``) and
-    the environments; ``log_name`` names its TensorBoard log (when the model
+    ``seed`` seeds the model's random streams (SB3's ``set_random_seed``)
+    and the environments at the start of each session; ``log_name`` names its TensorBoard log (when the model
     has a ``tensorboard_log`` folder) and ``log_names`` those of its branches,
     by seed.
     """
@@ -166,6 +167,12 @@ class SB3Learner:
         target = self.session_target(budget_steps)
         model = self.model
         model.set_env(SB3VecEnv(mazes, self.robot, self.n_envs, self.seed))
+        # A session draws from the learner's seed (a continued one, from the seed and
+        # the steps done), so its draws depend on nothing that ran before it.
+        seed = self.seed
+        if session["steps"]:
+            seed = int(np.random.SeedSequence([seed, session["steps"]]).generate_state(1)[0])
+        model.set_random_seed(seed & 0x7FFF_FFFF)
         if not session["converged"] and session["steps"] < target:
             self._session_point(session["steps"])
         if not session["converged"] and session["steps"] < target:
@@ -188,7 +195,7 @@ class SB3Learner:
         return outcome
 
     def branch(self, seed: int) -> SB3Learner:
-        """An independent copy (weights, optimiser state), its streams seeded by ``seed``."""
+        """An independent copy (weights, optimiser state) whose sessions draw from ``seed``."""
         with tempfile.TemporaryDirectory(prefix="sb3-branch-") as folder:
             path = Path(folder) / MODEL_FILE
             buffer = io.BytesIO()
@@ -197,7 +204,6 @@ class SB3Learner:
             model = load_sb3_model(
                 path, self.algo, self.robot, tensorboard_log=self.model.tensorboard_log
             )
-        model.set_random_seed(int(seed))
         return SB3Learner(
             model,
             algo=self.algo,

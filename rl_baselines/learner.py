@@ -99,9 +99,9 @@ class SB3Learner:
     """An SB3 model in training, as a curriculum drives it (see the module docstring).
 
     ``seed`` seeds the model's random streams (SB3's ``set_random_seed``)
-    and the environments at the start of each session; ``log_name`` names its TensorBoard log (when the model
-    has a ``tensorboard_log`` folder) and ``log_names`` those of its branches,
-    by seed.
+    and the environments at the start of each session; ``log_name`` names
+    its TensorBoard log (when the model has a ``tensorboard_log`` folder) and
+    ``log_names`` those of its branches, by seed.
     """
 
     def __init__(

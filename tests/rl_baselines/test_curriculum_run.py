@@ -94,7 +94,7 @@ def test_ppo_fits_its_rollout_to_a_tiny_budget(tmp_path: Path) -> None:
     # 2000 // 4 = 500 steps per branch: 64 steps x 4 environments (256) fits, 128 x 4 does not
     assert summary["hyperparameters_used"] == {"n_steps": 64, "batch_size": 64}
     assert json.loads((out / "config.json").read_text())["hyperparameters"] == {}
-    assert [int(r["steps"]) for r in _rows(out)][0] == 256
+    assert int(_rows(out)[0]["steps"]) == 256
     assert summary["env_steps"] <= 2000 and not (out / "tensorboard").exists()
 
 

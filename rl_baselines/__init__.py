@@ -9,7 +9,14 @@ stable-baselines3, which are imported here and nowhere in :mod:`amaze`.
 * :mod:`rl_baselines.agent`: :class:`SB3Agent`, a trained model as a policy of the
   shared protocol (``amaze.evaluation.policy``), with save/load; SB3 zips loaded
   without unpickling (``load_sb3_model``);
-* :mod:`rl_baselines.train`: the training regimes with run folders, checkpoints and resume;
+* :mod:`rl_baselines.config`: :class:`TrainConfig` (the run's config) and the rollouts
+  fitted to a curriculum's small budgets;
+* :mod:`rl_baselines.learner`: :class:`SB3Learner`, an SB3 model as a curriculum learner
+  (training sessions, branches, save/load);
+* :mod:`rl_baselines.train`: :class:`SB3Run`, the direct regime with run folders,
+  checkpoints and resume, and ``train``/``resume`` for every regime;
+* :mod:`rl_baselines.curriculum`: :class:`SB3CurriculumRun`, the interpolation and
+  EDHuCAT regimes (the curriculum loop of :mod:`amaze.runs.curriculum`);
 * :mod:`rl_baselines.cli`: the ``amaze-train`` command.
 """
 

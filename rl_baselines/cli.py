@@ -4,14 +4,19 @@
 
     amaze-train --algo ppo --regime direct --robot DD --budget-steps 100000 --seed 0 --out runs/ppo
     amaze-train --resume runs/ppo
+    amaze-train --algo ppo --regime edhucat --curator random --stages 3 --budget-steps 30000 \\
+        --branches 2 --out runs/edhucat
+    amaze-train --replay runs/edhucat --out runs/edhucat-again   # the same curriculum
     amaze-train --algo a2c --seed 3 --replicates 5 --out runs/a2c   # runs/a2c/seed-3 ... seed-7
 
-The options are the fields of :class:`~rl_baselines.train.TrainConfig`
+The options are the fields of :class:`~rl_baselines.config.TrainConfig`
 (``--help`` lists them) plus the run options of every training command
 (:class:`amaze.runs.command.TrainingCommand`). ``--config FILE.json`` holds SB3
 hyperparameters (``{"n_steps": 128, ...}``) or a whole config; command-line
-options win over it. SB3's progress bar shows on a terminal; TensorBoard logs go
-to the run folder's ``tensorboard/``. Bad input prints one line ``error: ...``
+options win over it. ``--regime interpolation|edhucat`` runs the curriculum loop
+(:mod:`rl_baselines.curriculum`), with ``--curator``, ``--stages``, ``--branches``
+and ``--target``. A progress bar shows on a terminal; TensorBoard logs go to the
+run folder's ``tensorboard/``. Bad input prints one line ``error: ...``
 and exits with status 2.
 """
 

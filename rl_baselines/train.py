@@ -1,9 +1,11 @@
 """Training SB3 A2C/PPO agents in the paper's regimes: the RL trainer of the run lifecycle.
 
 :class:`SB3Run` is the RL trainer of the shared run lifecycle
-(:mod:`amaze.runs.lifecycle`: fresh start, resume, final report); this module
-holds only what is RL's own: the regimes' stages, the periodic evaluation
-callback and the SB3 checkpoint.
+(:mod:`amaze.runs.lifecycle`: fresh start, resume, final report) for the
+**direct** regime; the curriculum regimes (``interpolation``, ``edhucat``)
+are handed to :class:`rl_baselines.curriculum.SB3CurriculumRun` (the
+curriculum loop with an SB3 learner) by :meth:`SB3Run.run_class_for`, so
+:func:`train`, :func:`resume` and ``amaze-train`` take every regime.
 
 The **direct** regime (paper §4): the agent trains on
 :data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE` in its 4 rotations (environment ``k``
@@ -12,33 +14,24 @@ plays rotation ``k % 4``; ``n_envs`` is a multiple of 4) and is evaluated every
 rotations. Training stops when the budget (``budget_steps`` env steps) is spent
 or when all 4 evaluation episodes are optimal (paper reward R̄ = 1).
 
-The **interpolation** regime (paper §4): the 10 stages of
-``amaze.curriculum.interpolation.curriculum(PAPER_TRAINING_MAZE)``, from a trivial 5x5 maze
-to the training maze. Stage ``k`` trains on stage maze ``k`` in its 4 rotations
-and is evaluated on them; it gets an equal share of the budget that is left
-(``remaining // stages_left``), so a stage that converges early hands its unused
-steps to the later ones. The last stage runs until the whole budget is spent.
-
 Budgets are counted in env steps and spent in whole rollouts
-(``n_steps x n_envs``), so a stage (or the run) may end up to one rollout past
-its share; ``summary.json`` reports the steps actually taken.
+(``n_steps x n_envs``), so the run may end up to one rollout past its budget;
+``summary.json`` reports the steps actually taken.
 
 Run folder (``out``):
 
 * ``config.json``: the :class:`TrainConfig` (enough to resume);
-* ``progress.csv``: one row per evaluation: ``steps, seconds, eval_success, eval_rbar``
-  (and ``stage``, always 0 in the direct regime);
+* ``progress.csv``: one row per evaluation: ``steps, seconds, eval_success, eval_rbar``;
 * ``checkpoints/model.zip`` + ``checkpoints/state.json``: the latest model and the
   step counter, time spent and evaluation state, each written atomically;
-* ``champion.zip`` + ``champion.json``: the best agent on the evaluation mazes
-  (of the last stage reached, in the interpolation regime);
+* ``champion.zip`` + ``champion.json``: the best agent on the evaluation mazes;
 * ``summary.json``: the final agent on the standard evaluation suite
   (``success_rate``, ``normalized_reward``, ``input_recognition``...) and the
   budget spent (``env_steps``, ``seconds``);
 * ``trajectories/``: PNGs of the final agent in the 4 evaluation rotations;
 * ``tensorboard/``: SB3's TensorBoard logs (losses, episode returns) and the
-  evaluations (``eval/success_rate``, ``eval/rbar``, ``eval/stage``), one log
-  per stage (``direct_0`` or ``stage-<k>_0``); ``tensorboard --logdir OUT/tensorboard``.
+  evaluations (``eval/success_rate``, ``eval/rbar``), in ``direct_0``;
+  ``tensorboard --logdir OUT/tensorboard``.
 
 Evaluations (and checkpoints) happen at the first rollout boundary at least
 ``eval_every`` steps after the previous one, and once more at the end.
@@ -54,128 +47,36 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
-from amaze.agents.robot import as_robot
-from amaze.curriculum.regimes import REGIMES, regime_stages, stage_end
 from amaze.evaluation.protocol import Evaluator
-from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
+from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
 from amaze.maze import rotations
-from amaze.runs.config import RunConfig, option, read_json_object
+from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import write_json
 from amaze.runs.lifecycle import Run, RunResult
 from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
-from rl_baselines.agent import SB3Agent, algorithm_class, load_sb3_model
-from rl_baselines.networks import small_cnn_kwargs
+from rl_baselines.agent import SB3Agent, load_sb3_model
+from rl_baselines.config import TrainConfig
+from rl_baselines.learner import OPTIMAL, new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
 
 __all__ = ["SB3Run", "TrainConfig", "resume", "train"]
 
-PROGRESS_FIELDS = ("steps", "seconds", "eval_success", "eval_rbar", "stage")
-#: R̄ at or above this counts as optimal (R̄ is 1 for a run in l-1 steps).
-OPTIMAL = 1.0 - 1e-9
-
-
-@dataclass
-class TrainConfig(RunConfig):
-    """Everything that defines a training run (stored as ``config.json``)."""
-
-    error = RLConfigError
-    options_field = "hyperparameters"
-
-    algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
-    regime: str = option("direct", "training regime", choices=REGIMES)
-    budget_steps: int = option(3_000_000, "environment steps")
-    eval_every: int = option(50_000, "environment steps between evaluations and checkpoints")
-    n_envs: int = option(4, "environments stepped together (a multiple of 4: one per rotation)")
-    tensorboard: bool = option(True, "write TensorBoard logs to OUT/tensorboard")
-    hyperparameters: dict[str, Any] = option(
-        default_factory=dict,
-        help="SB3 hyperparameters overriding SB3's defaults",
-        command_line=False,
-    )
-
-    def validate(self) -> TrainConfig:
-        """Check every field; raise :class:`RLConfigError` naming the bad value."""
-        super().validate()
-        algorithm_class(self.algo)
-        self.algo = self.algo.lower()
-        if self.regime not in REGIMES:
-            raise RLConfigError(
-                f"unknown regime {self.regime!r} (choose from {', '.join(REGIMES)})"
-            )
-        for name in ("budget_steps", "eval_every", "n_envs"):
-            value = check_integer(name, getattr(self, name), minimum=1, error=RLConfigError)
-            setattr(self, name, value)
-        if not isinstance(self.tensorboard, bool):
-            raise RLConfigError(f"tensorboard {self.tensorboard!r} is not true or false")
-        if self.n_envs % 4:
-            raise RLConfigError(f"n_envs {self.n_envs} is not a multiple of 4 (one per rotation)")
-        if not isinstance(self.hyperparameters, dict):
-            raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
-        _check_hyperparameters(self.algo, self.hyperparameters)
-        return self
-
-
-#: Hyperparameters the trainer sets itself.
-_RESERVED = frozenset(
-    {"policy", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
-)
-#: Integer hyperparameters that SB3 needs to be at least 1.
-_POSITIVE = frozenset({"n_steps", "batch_size", "n_epochs"})
-
-
-def _check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:
-    """Each hyperparameter is one of the algorithm's, of the type of its SB3 default.
-
-    SB3 checks some values with ``assert`` and others only when training
-    starts (a string learning rate fails deep inside torch); checking the
-    types here gives one clear error, naming the value, before the run starts.
-    """
-    import inspect
-
-    defaults = {
-        name: parameter.default
-        for name, parameter in inspect.signature(algorithm_class(algo).__init__).parameters.items()
-    }
-    for name, value in hyperparameters.items():
-        what = f"hyperparameter {name!r}"
-        if name in _RESERVED:
-            raise RLConfigError(f"{what} is set by the trainer")
-        if name not in defaults or name == "self":
-            raise RLConfigError(f"{what} is not one of {algo.upper()}'s")
-        default = defaults[name]
-        if name.endswith("_class"):
-            raise RLConfigError(f"{what} names a class, which a config file cannot give")
-        if isinstance(default, bool):
-            if not isinstance(value, bool):
-                raise RLConfigError(f"{what} {value!r} is not true or false")
-        elif isinstance(default, int):
-            check_integer(
-                what, value, minimum=1 if name in _POSITIVE else None, error=RLConfigError
-            )
-        elif isinstance(default, float) or (default is None and not name.endswith("kwargs")):
-            if value is not None or default is not None:
-                check_number(what, value, error=RLConfigError)
-        elif default is None and value is not None and not isinstance(value, dict):
-            raise RLConfigError(f"{what} {value!r} is not a JSON object")
+PROGRESS_FIELDS = ("steps", "seconds", "eval_success", "eval_rbar")
 
 
 def _checked_state(state: dict[str, Any]) -> dict[str, Any]:
     """``checkpoints/state.json``'s content with every field checked (types and ranges)."""
 
-    def integer(name: str, minimum: int, nullable: bool = False) -> int | None:
-        value = state.get(name)
-        if nullable and value is None:
-            return None
+    def integer(name: str, minimum: int) -> int:
         return check_integer(
-            f"checkpoint state {name}", value, minimum=minimum, error=RLConfigError
+            f"checkpoint state {name}", state.get(name), minimum=minimum, error=RLConfigError
         )
 
     best = state.get("best")
@@ -196,8 +97,6 @@ def _checked_state(state: dict[str, Any]) -> dict[str, Any]:
         "best": best,
         "converged": state["converged"],
         "last_eval_steps": integer("last_eval_steps", -1),
-        "stage": integer("stage", 0),
-        "stage_end": integer("stage_end", 0, nullable=True),
     }
 
 
@@ -228,7 +127,6 @@ class _EvaluationCallback(BaseCallback):
         run.last_eval_steps = steps
         self.logger.record("eval/success_rate", score[0])
         self.logger.record("eval/rbar", score[1])
-        self.logger.record("eval/stage", run.stage)
         self.logger.dump(steps)
         run.progress.append(
             {
@@ -236,7 +134,6 @@ class _EvaluationCallback(BaseCallback):
                 "seconds": round(run.seconds(), 3),
                 "eval_success": score[0],
                 "eval_rbar": score[1],
-                "stage": run.stage,
             }
         )
         run.save_checkpoint()
@@ -251,7 +148,11 @@ class _EvaluationCallback(BaseCallback):
 
 
 class SB3Run(Run):
-    """The RL trainer: SB3 learns stage after stage, evaluated every ``eval_every`` steps."""
+    """The RL trainer of the direct regime: SB3 learns, evaluated every ``eval_every`` steps.
+
+    The curriculum regimes run as :class:`~rl_baselines.curriculum.SB3CurriculumRun`
+    (:meth:`run_class_for`).
+    """
 
     config_class = TrainConfig
     progress_fields = PROGRESS_FIELDS
@@ -263,46 +164,42 @@ class SB3Run(Run):
     def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
         super().__init__(out, config)
         torch.set_num_threads(1)
-        self.stages = regime_stages(config.regime)
         self.model: BaseAlgorithm | None = None
         self.seconds_before = 0.0
         self.best: tuple[float, float] | None = None
         self.converged = False
         self.last_eval_steps = -1
-        self.stage = 0
-        self.stage_end: int | None = None
         self.started = time.monotonic()
 
     def seconds(self) -> float:
         """Wall-clock seconds of training, over every resumed part of the run."""
         return self.seconds_before + (time.monotonic() - self.started)
 
-    def _env(self, stage: int) -> SB3VecEnv:
-        """The training environments of ``stage`` (one rotation per environment)."""
+    def _env(self) -> SB3VecEnv:
+        """The training environments (one rotation per environment)."""
         c = self.config
-        return SB3VecEnv(list(self.stages[stage].training), c.robot, c.n_envs, c.seed)
+        return SB3VecEnv(rotations(PAPER_TRAINING_MAZE), c.robot, c.n_envs, c.seed)
 
     def _tensorboard_dir(self) -> str | None:
         return str(self.out / "tensorboard") if self.config.tensorboard else None
 
     # -- the lifecycle's hooks --------------------------------------------------
 
+    @classmethod
+    def run_class_for(cls, config: RunConfig) -> type[Run]:
+        """:class:`SB3CurriculumRun` for the curriculum regimes, this class for direct."""
+        if getattr(config, "is_curriculum", False):
+            from rl_baselines.curriculum import SB3CurriculumRun
+
+            return SB3CurriculumRun
+        return cls
+
     def start(self) -> None:
         """A fresh SB3 model: SB3's default hyperparameters unless the config overrides them."""
-        config = self.config
-        kwargs = dict(config.hyperparameters)
-        kwargs.setdefault("tensorboard_log", self._tensorboard_dir())
-        if as_robot(config.robot).discrete_inputs:
-            policy = "MlpPolicy"
-        else:
-            policy = "CnnPolicy"
-            kwargs["policy_kwargs"] = {**small_cnn_kwargs(), **kwargs.get("policy_kwargs", {})}
-        try:
-            self.model = algorithm_class(config.algo)(
-                policy, self._env(0), seed=config.seed, device="cpu", verbose=0, **kwargs
-            )
-        except (TypeError, ValueError, AssertionError) as error:  # before any file is written
-            raise RLConfigError(f"bad hyperparameters for {config.algo}: {error}") from None
+        c = self.config
+        self.model = new_sb3_model(
+            c.algo, c.robot, self._env(), c.seed, c.hyperparameters, self._tensorboard_dir()
+        )
 
     def restore(self) -> int | None:
         """The SB3 model and the evaluation state of the last checkpoint, checked."""
@@ -318,16 +215,11 @@ class SB3Run(Run):
             state = _checked_state(data)
         except RLConfigError as problem:
             raise RLConfigError(f"checkpoint file {str(state_file)!r}: {problem}") from None
-        if state["stage"] >= len(self.stages):
-            raise RLConfigError(
-                f"checkpoint file {str(state_file)!r}: stage {state['stage']} is not one of the"
-                f" {len(self.stages)} stages of the {self.config.regime} regime"
-            )
         self.model = load_sb3_model(
             model_file,
             self.config.algo,
             self.config.robot,
-            env=self._env(state["stage"]),
+            env=self._env(),
             tensorboard_log=self._tensorboard_dir(),
         )
         champion = [self.out / "champion.zip", self.out / "champion.json"]
@@ -337,46 +229,31 @@ class SB3Run(Run):
         self.best = tuple(state["best"]) if state["best"] is not None else None
         self.converged = state["converged"]
         self.last_eval_steps = state["last_eval_steps"]
-        self.stage = state["stage"]
-        self.stage_end = state["stage_end"]
         self.started = time.monotonic()
         self.model.num_timesteps = state["num_timesteps"]
         return self.model.num_timesteps
 
     def train(self, progress_bar: bool) -> None:
-        """Train stage after stage from ``self.stage`` on."""
+        """Train until the budget is spent or the evaluation episodes are all optimal."""
         config, model = self.config, self.model
         assert model is not None
         callback = _EvaluationCallback(self)
-        while True:
-            used = int(model.num_timesteps)
-            if self.stage_end is None:
-                stages_left = len(self.stages) - self.stage
-                self.stage_end = stage_end(config.budget_steps, used, stages_left)
-            eval_mazes = list(self.stages[self.stage].evaluation)
-            callback.evaluator = Evaluator(config.robot, mazes=eval_mazes, inputs=False)
-            remaining = self.stage_end - used
-            if remaining > 0 and not self.converged:
-                model.learn(
-                    total_timesteps=remaining,
-                    callback=callback,
-                    reset_num_timesteps=False,
-                    tb_log_name="direct" if config.regime == "direct" else f"stage-{self.stage}",
-                    progress_bar=progress_bar,
-                )
-            # A converged stage stopped one step after its last evaluation, before any
-            # training on it: the model evaluated is the final one, so no second row.
-            if self.last_eval_steps != int(model.num_timesteps) and not self.converged:
-                callback.init_callback(model)
-                callback.evaluate_now()
-            if self.stage + 1 == len(self.stages):
-                break
-            self.stage += 1
-            self.stage_end = None
-            self.converged = False
-            self.best = None
-            model.set_env(self._env(self.stage))
-            self.save_checkpoint()
+        mazes = rotations(PAPER_EVALUATION_MAZE)
+        callback.evaluator = Evaluator(config.robot, mazes=mazes, inputs=False)
+        remaining = config.budget_steps - int(model.num_timesteps)
+        if remaining > 0 and not self.converged:
+            model.learn(
+                total_timesteps=remaining,
+                callback=callback,
+                reset_num_timesteps=False,
+                tb_log_name="direct",
+                progress_bar=progress_bar,
+            )
+        # A converged run stopped one step after its last evaluation, before any
+        # training on it: the model evaluated is the final one, so no second row.
+        if self.last_eval_steps != int(model.num_timesteps) and not self.converged:
+            callback.init_callback(model)
+            callback.evaluate_now()
 
     def final_agent(self) -> SB3Agent:
         assert self.model is not None
@@ -423,8 +300,6 @@ class SB3Run(Run):
                 "best": list(self.best) if self.best is not None else None,
                 "converged": self.converged,
                 "last_eval_steps": self.last_eval_steps,
-                "stage": self.stage,
-                "stage_end": self.stage_end,
             },
         )
 
@@ -434,7 +309,8 @@ def train(
 ) -> RunResult:
     """Train a fresh agent as ``config`` says and write the run folder ``out``.
 
-    ``progress_bar`` shows SB3's progress bar (one per stage).
+    ``progress_bar`` shows a progress bar. Every regime: the curriculum ones
+    run as :class:`~rl_baselines.curriculum.SB3CurriculumRun`.
     """
     return SB3Run.fresh(config, out, progress_bar=progress_bar)
 

@@ -2,8 +2,8 @@
 
 * :mod:`~amaze.curriculum.interpolation`: the paper's interpolation regime,
   ``curriculum(end, n)`` from a trivial maze to a target;
-* :mod:`~amaze.curriculum.regimes`: the regimes as stage lists for any
-  trainer, and how a budget is shared between stages;
+* :mod:`~amaze.curriculum.regimes`: the regimes' names, and how a
+  curriculum's budget is shared between stages and branches;
 * :mod:`~amaze.curriculum.genome`: the maze genome of curators: mutation
   operators on maze strings (:class:`MazeGenome`), a difficulty order
   (:func:`difficulty`, :func:`harder_or_equal`) and a distance
@@ -37,7 +37,7 @@ from amaze.curriculum.genome import (
     maze_distance,
 )
 from amaze.curriculum.interpolation import InterpolationError, curriculum, interpolate
-from amaze.curriculum.regimes import REGIMES, Stage, regime_stages, stage_end
+from amaze.curriculum.regimes import REGIMES, branch_allowance
 
 __all__ = [
     "REGIMES",
@@ -52,8 +52,8 @@ __all__ = [
     "MazeGenome",
     "MazeResults",
     "SignSet",
-    "Stage",
     "StageRecord",
+    "branch_allowance",
     "curator_names",
     "curriculum",
     "difficulty",
@@ -62,6 +62,4 @@ __all__ = [
     "interpolate",
     "make_curator",
     "maze_distance",
-    "regime_stages",
-    "stage_end",
 ]

@@ -1,13 +1,9 @@
-"""The paper's training regimes as lists of stages, for any trainer.
+"""The paper's training regimes, and how a curriculum's budget is shared, for any trainer.
 
-A regime says which mazes an agent trains on, stage after stage, and which
-mazes it is evaluated on meanwhile; how a budget is shared between stages is
-:func:`stage_end`. Trainers (``rl_baselines.train``; evolution next) play the
-stages; curators of later regimes produce stages the same way.
-
-* **direct** (paper §4): one stage, the training maze
-  :data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE` in its 4 rotations,
-  evaluated on :data:`~amaze.evaluation.suite.PAPER_EVALUATION_MAZE`'s 4 rotations;
+* **direct** (paper §4): the agent trains on
+  :data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE` in its 4 rotations and is
+  evaluated on :data:`~amaze.evaluation.suite.PAPER_EVALUATION_MAZE`'s 4 rotations
+  (each trainer's own run plays it);
 * **interpolation** (paper §4): the 10 stages of
   :func:`~amaze.curriculum.interpolation.curriculum` from a trivial 5x5 maze to
   the training maze, each trained and evaluated on its own 4 rotations; run
@@ -23,56 +19,11 @@ branches.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-from amaze.curriculum.interpolation import curriculum
-from amaze.errors import AmazeError
-from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
-from amaze.maze import rotations
-
-__all__ = [
-    "CURRICULUM_REGIMES",
-    "REGIMES",
-    "Stage",
-    "branch_allowance",
-    "regime_stages",
-    "stage_end",
-]
+__all__ = ["CURRICULUM_REGIMES", "REGIMES", "branch_allowance"]
 
 REGIMES = ("direct", "interpolation", "edhucat")
 #: The regimes played by the curriculum loop (stages of branches chosen by a curator).
 CURRICULUM_REGIMES = ("interpolation", "edhucat")
-
-
-@dataclass(frozen=True)
-class Stage:
-    """One stage of a regime: canonical maze strings, rotations included."""
-
-    training: tuple[str, ...]
-    evaluation: tuple[str, ...]
-
-
-def regime_stages(regime: str) -> list[Stage]:
-    """The stages of ``regime`` (see the module docstring)."""
-    if regime == "direct":
-        return [
-            Stage(tuple(rotations(PAPER_TRAINING_MAZE)), tuple(rotations(PAPER_EVALUATION_MAZE)))
-        ]
-    if regime == "interpolation":
-        stages = [tuple(rotations(spec)) for spec in curriculum(PAPER_TRAINING_MAZE)]
-        return [Stage(mazes, mazes) for mazes in stages]
-    raise AmazeError(f"unknown regime {regime!r} (choose from {', '.join(REGIMES)})")
-
-
-def stage_end(budget: int, used: int, stages_left: int) -> int:
-    """Where the current stage stops: an equal share of what is left (all of it at the end).
-
-    Steps that earlier stages did not use (they converged early) are shared among
-    the stages still to come.
-    """
-    if stages_left <= 1:
-        return budget
-    return used + max(budget - used, 0) // stages_left
 
 
 def branch_allowance(budget: int, used: int, stage: int, stages: int, branches: int) -> int:

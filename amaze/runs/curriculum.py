@@ -708,9 +708,11 @@ class CurriculumRun(Run):
         else:
             parent_learner = self.load_learner(self._branch_folder(parent) / "agent")
             learner = parent_learner.branch(branch_seed(c.seed, stage, branch))
+        training = time.perf_counter()
         outcome = learner.train(
             rotations(mazes[branch]), allowance, checkpoint=lambda: learner.save(checkpoint)
         )
+        training = time.perf_counter() - training  # counted in outcome.seconds already
         learner.save(folder / "agent")
         agent = learner.agent()
         report = evaluator.evaluate(agent)
@@ -739,7 +741,7 @@ class CurriculumRun(Run):
             others=tuple(r for i, r in enumerate(results) if i != branch),
             lineage=lineage,
             env_steps=outcome.env_steps,
-            seconds=outcome.seconds + (time.perf_counter() - started),
+            seconds=outcome.seconds + (time.perf_counter() - started - training),
             converged=outcome.converged,
             lineage_steps=parent_steps + outcome.env_steps,
             pictures=(picture,),

@@ -55,7 +55,7 @@ CASES = {
     "progress wrong header": ("progress.csv", write(b"a,b\n1,2\n"), "header"),
     "progress bad steps": (
         "progress.csv",
-        write(b"steps,seconds,eval_success,eval_rbar,stage\nmany,0,0,0,0\n"),
+        write(b"steps,seconds,eval_success,eval_rbar\nmany,0,0,0\n"),
         "steps 'many'",
     ),
     "model missing": (MODEL, missing, "is missing"),
@@ -72,7 +72,7 @@ CASES = {
     "state wrong seconds": (STATE, edit_json(seconds=-1), "seconds -1"),
     "state wrong best": (STATE, edit_json(best="good"), "best 'good'"),
     "state wrong converged": (STATE, edit_json(converged="no"), "converged 'no'"),
-    "state stage out of range": (STATE, edit_json(stage=3), "stage 3"),
+    "state wrong last evaluation": (STATE, edit_json(last_eval_steps=-2), "last_eval_steps -2"),
     "champion empty": ("champion.zip", write(b""), "champion.zip"),
     "champion truncated": ("champion.zip", truncate, "champion.zip"),
     "champion random bytes": ("champion.zip", write(RANDOM), "champion.zip"),

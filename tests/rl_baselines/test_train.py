@@ -31,7 +31,9 @@ def _progress(out: Path) -> list[dict[str, str]]:
         ({"n_envs": 6}, "6"),
         ({"budget_steps": 0}, "budget_steps 0"),
         ({"robot": "Z"}, "'Z'"),
-        ({"regime": "edhucat"}, "'edhucat'"),
+        ({"regime": "sideways"}, "'sideways'"),
+        ({"regime": "edhucat", "curator": "nobody"}, "'nobody'"),
+        ({"stages": 3}, "stages 3 is for the curriculum regimes"),
         ({"colour": 1}, "'colour'"),
         ({"hyperparameters": {"seed": 3}}, "'seed'"),
     ],
@@ -133,17 +135,6 @@ def test_early_stop_when_every_evaluation_episode_is_optimal(
     result = train(config, tmp_path / "run")
     assert result.summary["converged"] and result.env_steps < 100
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["converged"] is True
-
-
-def test_interpolation_regime_walks_the_ten_stages(tmp_path: Path) -> None:
-    out = tmp_path / "interp"
-    config = {"algo": "a2c", "regime": "interpolation", "budget_steps": 800, "eval_every": 40}
-    result = train(config, out)
-    assert result.env_steps == 800
-    rows = _progress(out)
-    stages = [int(r["stage"]) for r in rows]
-    assert stages == sorted(stages) and set(stages) == set(range(10))
-    assert [int(r["steps"]) for r in rows if int(r["stage"]) == 9][-1] == 800
 
 
 def test_replicates_run_one_process_per_seed(

@@ -1,39 +1,21 @@
-"""The paper's regimes as stage lists, and how a budget is shared between stages."""
+"""The regimes' names, and how a curriculum's budget is shared between stages and branches."""
 
 from __future__ import annotations
 
 import pytest
 
-from amaze.curriculum.interpolation import curriculum
-from amaze.curriculum.regimes import regime_stages, stage_end
-from amaze.errors import AmazeError
-from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
-from amaze.maze import MazeSpec, rotations
+from amaze.curriculum.regimes import CURRICULUM_REGIMES, REGIMES, branch_allowance
 
 
-def test_direct_regime_trains_on_the_paper_maze_and_evaluates_on_the_other() -> None:
-    (stage,) = regime_stages("direct")
-    assert stage.training == tuple(rotations(PAPER_TRAINING_MAZE))
-    assert stage.evaluation == tuple(rotations(PAPER_EVALUATION_MAZE))
+def test_the_curriculum_regimes_are_regimes() -> None:
+    assert set(CURRICULUM_REGIMES) < set(REGIMES) and "direct" not in CURRICULUM_REGIMES
 
 
-def test_interpolation_regime_is_the_curriculum_in_rotations() -> None:
-    stages = regime_stages("interpolation")
-    targets = curriculum(PAPER_TRAINING_MAZE)
-    assert len(stages) == len(targets) == 10
-    for stage, target in zip(stages, targets, strict=True):
-        assert stage.training == stage.evaluation == tuple(rotations(target))
-    last = MazeSpec.from_string(stages[-1].training[2])  # SW: the target itself
-    assert last == MazeSpec.from_string(PAPER_TRAINING_MAZE)
-
-
-def test_unknown_regime_is_named() -> None:
-    with pytest.raises(AmazeError, match="'edhucat'"):
-        regime_stages("edhucat")
-
-
-def test_stage_shares_hand_unused_budget_on() -> None:
-    assert stage_end(1000, 0, 10) == 100
-    # stage 1 converged after 20 steps: the 9 stages left share the other 980
-    assert stage_end(1000, 20, 9) == 20 + 980 // 9
-    assert stage_end(1000, 950, 1) == 1000
+def test_branch_allowance_is_the_papers_split_with_hand_on() -> None:
+    assert branch_allowance(3_000_000, 0, 0, 10, 3) == 100_000
+    # stage 0 trained one agent for 100 k: the 9 stages left share the other 2.9 M
+    assert branch_allowance(3_000_000, 100_000, 1, 10, 3) == 2_900_000 // 27
+    assert branch_allowance(1000, 950, 9, 10, 2) == 25
+    assert branch_allowance(1000, 2000, 9, 10, 2) == 0
+    with pytest.raises(ValueError, match="stage 10"):
+        branch_allowance(1000, 0, 10, 10, 2)

@@ -1,0 +1,148 @@
+"""The config of an ``amaze-train`` run (:class:`TrainConfig`) and its hyperparameter checks.
+
+:class:`TrainConfig` is a :class:`~amaze.runs.curriculum.CurriculumConfig`:
+``regime`` is ``direct`` (:class:`rl_baselines.train.SB3Run`), ``interpolation``
+or ``edhucat`` (the curriculum loop, :class:`rl_baselines.curriculum.SB3CurriculumRun`),
+with ``curator``, ``stages``, ``branches`` and ``target`` for the curricula.
+
+**Rollouts of a curriculum** (:func:`fitted_hyperparameters`). A curriculum
+gives each branch ``budget_steps / (K * S)`` steps (the paper's split), which
+with small budgets is less than one default rollout (PPO: 2048 steps x
+``n_envs``). When the user did not set ``n_steps``, a curriculum run whose
+default rollout does not fit the first branch's allowance uses the largest
+power of two ``n_steps`` with ``n_steps * n_envs`` within it (at least
+:data:`MIN_N_STEPS`); PPO's ``batch_size``, when not set either, becomes the
+largest power of two that divides the rollout, at most SB3's default. The
+choice is made once from the config (so a resumed run makes the same one),
+holds for the whole run, and is recorded in ``summary.json``
+(``hyperparameters_used``). Hyperparameters the user set are never changed.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from amaze.curriculum.regimes import branch_allowance
+from amaze.runs.config import option
+from amaze.runs.curriculum import CurriculumConfig
+from amaze.validation import check_integer, check_number
+from rl_baselines import RLConfigError
+from rl_baselines.agent import algorithm_class
+
+__all__ = ["MIN_N_STEPS", "TrainConfig", "fitted_hyperparameters"]
+
+#: The fewest steps per environment a fitted rollout has.
+MIN_N_STEPS = 8
+
+
+@dataclass
+class TrainConfig(CurriculumConfig):
+    """Everything that defines a training run (stored as ``config.json``)."""
+
+    error = RLConfigError
+    options_field = "hyperparameters"
+
+    algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
+    budget_steps: int = option(3_000_000, "environment steps")
+    eval_every: int = option(50_000, "environment steps between evaluations and checkpoints")
+    n_envs: int = option(4, "environments stepped together (a multiple of 4: one per rotation)")
+    tensorboard: bool = option(True, "write TensorBoard logs to OUT/tensorboard")
+    hyperparameters: dict[str, Any] = option(
+        default_factory=dict,
+        help="SB3 hyperparameters overriding SB3's defaults",
+        command_line=False,
+    )
+
+    def validate(self) -> TrainConfig:
+        """Check every field; raise :class:`RLConfigError` naming the bad value."""
+        algorithm_class(self.algo)
+        self.algo = self.algo.lower()
+        super().validate()
+        for name in ("budget_steps", "eval_every", "n_envs"):
+            value = check_integer(name, getattr(self, name), minimum=1, error=RLConfigError)
+            setattr(self, name, value)
+        if not isinstance(self.tensorboard, bool):
+            raise RLConfigError(f"tensorboard {self.tensorboard!r} is not true or false")
+        if self.n_envs % 4:
+            raise RLConfigError(f"n_envs {self.n_envs} is not a multiple of 4 (one per rotation)")
+        if not isinstance(self.hyperparameters, dict):
+            raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
+        check_hyperparameters(self.algo, self.hyperparameters)
+        return self
+
+
+#: Hyperparameters the trainer sets itself.
+_RESERVED = frozenset(
+    {"policy", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
+)
+#: Integer hyperparameters that SB3 needs to be at least 1.
+_POSITIVE = frozenset({"n_steps", "batch_size", "n_epochs"})
+
+
+def sb3_defaults(algo: str) -> dict[str, Any]:
+    """The keyword arguments of the SB3 algorithm and their defaults."""
+    signature = inspect.signature(algorithm_class(algo).__init__)
+    return {name: parameter.default for name, parameter in signature.parameters.items()}
+
+
+def check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:
+    """Each hyperparameter is one of the algorithm's, of the type of its SB3 default.
+
+    SB3 checks some values with ``assert`` and others only when training
+    starts (a string learning rate fails deep inside torch); checking the
+    types here gives one clear error, naming the value, before the run starts.
+    """
+    defaults = sb3_defaults(algo)
+    for name, value in hyperparameters.items():
+        what = f"hyperparameter {name!r}"
+        if name in _RESERVED:
+            raise RLConfigError(f"{what} is set by the trainer")
+        if name not in defaults or name == "self":
+            raise RLConfigError(f"{what} is not one of {algo.upper()}'s")
+        default = defaults[name]
+        if name.endswith("_class"):
+            raise RLConfigError(f"{what} names a class, which a config file cannot give")
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise RLConfigError(f"{what} {value!r} is not true or false")
+        elif isinstance(default, int):
+            check_integer(
+                what, value, minimum=1 if name in _POSITIVE else None, error=RLConfigError
+            )
+        elif isinstance(default, float) or (default is None and not name.endswith("kwargs")):
+            if value is not None or default is not None:
+                check_number(what, value, error=RLConfigError)
+        elif default is None and value is not None and not isinstance(value, dict):
+            raise RLConfigError(f"{what} {value!r} is not a JSON object")
+
+
+def fitted_hyperparameters(config: TrainConfig) -> dict[str, Any]:
+    """The hyperparameters a curriculum run gives SB3 (see the module docstring).
+
+    The user's, with ``n_steps`` (and PPO's ``batch_size``) fitted to the
+    first branch's allowance when the user did not set them and SB3's
+    default rollout does not fit it; ``n_steps`` and ``batch_size`` (PPO)
+    are always present, so the result says what ran.
+    """
+    c = config
+    assert c.stages is not None and c.branches is not None
+    defaults = sb3_defaults(c.algo)
+    used = dict(c.hyperparameters)
+    allowance = branch_allowance(c.budget_steps, 0, 0, c.stages, c.branches)
+    fitted = False
+    if "n_steps" not in used:
+        n_steps = int(defaults["n_steps"])
+        if n_steps * c.n_envs > allowance:
+            fits = max(allowance // c.n_envs, 1)
+            n_steps = min(n_steps, max(MIN_N_STEPS, 1 << (fits.bit_length() - 1)))
+            fitted = True
+        used["n_steps"] = n_steps
+    if c.algo == "ppo" and "batch_size" not in used:
+        batch_size = int(defaults["batch_size"])
+        if fitted:
+            batch_size = math.gcd(used["n_steps"] * c.n_envs, batch_size)
+        used["batch_size"] = batch_size
+    return used

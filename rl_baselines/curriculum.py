@@ -1,0 +1,102 @@
+"""SB3 A2C/PPO in the curriculum regimes: the curriculum loop with an SB3 learner.
+
+:class:`SB3CurriculumRun` is :class:`amaze.runs.curriculum.CurriculumRun`
+(EDHuCAT, paper Algorithm 1; the interpolation regime is the same loop with
+the ``interpolation`` curator and one branch) whose learner is an
+:class:`~rl_baselines.learner.SB3Learner`: each branch copies the selected
+agent's model (weights and optimiser state) and trains it on its maze's 4
+rotations for its allowance, in whole rollouts, evaluated (and checkpointed)
+every ``eval_every`` steps and stopped early once every training episode is
+optimal.
+
+Rollouts are fitted to small budgets (see :func:`rl_baselines.config.fitted_hyperparameters`);
+``summary.json`` records them (``hyperparameters_used``). TensorBoard logs
+(with ``--tensorboard``, the default) go to ``OUT/tensorboard/``, one log per
+branch (``stage-<s>-branch-<b>_0``), with the evaluations (``eval/success_rate``,
+``eval/rbar``) besides SB3's own figures.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import torch
+
+from amaze.curriculum.learner import branch_seed
+from amaze.runs.curriculum import CurriculumRun
+from rl_baselines.config import TrainConfig, fitted_hyperparameters
+from rl_baselines.learner import SB3Learner, load_sb3_learner, new_sb3_model
+from rl_baselines.vec_env import SB3VecEnv
+
+__all__ = ["SB3CurriculumRun"]
+
+
+class SB3CurriculumRun(CurriculumRun):
+    """The curriculum loop of the RL trainer (see the module docstring)."""
+
+    config_class = TrainConfig
+    outputs: ClassVar[tuple[str, ...]] = (*CurriculumRun.outputs, "tensorboard/")
+    config: TrainConfig
+
+    def __init__(self, out: Any, config: TrainConfig) -> None:
+        super().__init__(out, config)
+        torch.set_num_threads(1)
+        self.hyperparameters = fitted_hyperparameters(config)
+        c = config
+        assert c.stages is not None and c.branches is not None
+        branches = [1, *[c.branches] * (c.stages - 1)]
+        self.log_names = {
+            branch_seed(c.seed, stage, branch): f"stage-{stage}-branch-{branch}"
+            for stage, count in enumerate(branches)
+            for branch in range(count)
+        }
+
+    def _tensorboard_dir(self) -> str | None:
+        return str(self.out / "tensorboard") if self.config.tensorboard else None
+
+    def new_learner(self, seed: int) -> SB3Learner:
+        c = self.config
+        env = SB3VecEnv([c.target], c.robot, c.n_envs, seed)
+        model = new_sb3_model(
+            c.algo, c.robot, env, seed, self.hyperparameters, self._tensorboard_dir()
+        )
+        return SB3Learner(
+            model,
+            algo=c.algo,
+            robot=c.robot,
+            seed=seed,
+            n_envs=c.n_envs,
+            eval_every=c.eval_every,
+            log_name=self.log_names.get(seed, f"seed-{seed}"),
+            log_names=self.log_names,
+        )
+
+    def load_learner(self, folder: Path) -> SB3Learner:
+        c = self.config
+        return load_sb3_learner(
+            folder,
+            algo=c.algo,
+            robot=c.robot,
+            n_envs=c.n_envs,
+            tensorboard_log=self._tensorboard_dir(),
+            log_names=self.log_names,
+        )
+
+    def learner_figures(self) -> dict[str, Any]:
+        c = self.config
+        return {
+            "algo": c.algo,
+            "n_envs": c.n_envs,
+            "eval_every": c.eval_every,
+            "hyperparameters_used": dict(self.hyperparameters),
+        }
+
+    def start(self) -> None:
+        """The curator (:meth:`CurriculumRun.start`), once a model can be built.
+
+        A throwaway model is built from the hyperparameters, so that bad ones
+        fail here, before anything is written.
+        """
+        self.new_learner(0).model.env.close()
+        super().start()

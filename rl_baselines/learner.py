@@ -1,0 +1,361 @@
+"""An SB3 A2C/PPO model as a curriculum learner (:class:`amaze.curriculum.learner.Learner`).
+
+:class:`SB3Learner` trains its model in sessions (``train(mazes, budget)``):
+the model's environment becomes an :class:`~rl_baselines.vec_env.SB3VecEnv`
+over the session's mazes (environment ``k`` plays ``mazes[k % len(mazes)]``),
+and SB3 learns in whole rollouts (``n_steps x n_envs`` steps): as many as fit
+in the budget, at least one. At the start of a rollout, when ``eval_every``
+steps have passed since the last evaluation (and at the session's start), the
+model is evaluated on the session's mazes (the shared
+:class:`~amaze.evaluation.protocol.Evaluator`, deterministic actions) and the
+session's ``checkpoint()`` is called; once every episode is optimal
+(R̄ = 1) the session stops: it has converged.
+
+Files (:meth:`SB3Learner.save`, each written atomically): ``model.zip``, SB3's
+zip (weights and optimiser state), and ``learner.json``: the learner's own
+settings and the session in progress, if any (mazes, budget, steps, seconds,
+evaluation state), so a learner saved from ``checkpoint()`` and loaded again
+continues its session. :func:`load_sb3_learner` reads them back without
+unpickling (:func:`~rl_baselines.agent.load_sb3_model`), every field checked.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+
+from amaze.agents.robot import as_robot
+from amaze.curriculum.learner import TrainingOutcome
+from amaze.evaluation.protocol import Evaluator
+from amaze.maze.spec import MazeSpec
+from amaze.runs.config import read_json_object
+from amaze.runs.folder import write_json
+from amaze.validation import check_integer, check_number
+from rl_baselines import RLConfigError
+from rl_baselines.agent import SB3Agent, algorithm_class, load_sb3_model
+from rl_baselines.networks import small_cnn_kwargs
+from rl_baselines.vec_env import SB3VecEnv
+
+__all__ = ["LEARNER_FILE", "MODEL_FILE", "OPTIMAL", "SB3Learner", "load_sb3_learner"]
+
+MODEL_FILE = "model.zip"
+LEARNER_FILE = "learner.json"
+LEARNER_FORMAT = "sb3-learner"
+#: R̄ at or above this counts as optimal (R̄ is 1 for a run in l-1 steps).
+OPTIMAL = 1.0 - 1e-9
+
+
+def new_sb3_model(
+    algo: str,
+    robot: str,
+    env: Any,
+    seed: int,
+    hyperparameters: Mapping[str, Any],
+    tensorboard_log: str | None = None,
+) -> BaseAlgorithm:
+    """A fresh SB3 model: MlpPolicy for discrete inputs, the small CNN otherwise.
+
+    Bad hyperparameters raise :class:`RLConfigError`.
+    """
+    kwargs = dict(hyperparameters)
+    kwargs.setdefault("tensorboard_log", tensorboard_log)
+    if as_robot(robot).discrete_inputs:
+        policy = "MlpPolicy"
+    else:
+        policy = "CnnPolicy"
+        kwargs["policy_kwargs"] = {**small_cnn_kwargs(), **kwargs.get("policy_kwargs", {})}
+    try:
+        return algorithm_class(algo)(policy, env, seed=seed, device="cpu", verbose=0, **kwargs)
+    except (TypeError, ValueError, AssertionError) as error:
+        raise RLConfigError(f"bad hyperparameters for {algo}: {error}") from None
+
+
+class _SessionCallback(BaseCallback):
+    """At the start of a rollout: evaluate when due, then checkpoint; stop once converged."""
+
+    def __init__(self, learner: SB3Learner, start: int, steps_before: int) -> None:
+        super().__init__(verbose=0)
+        self.learner = learner
+        self.start = start
+        self.steps_before = steps_before
+
+    def _on_rollout_start(self) -> None:
+        self.learner._session_point(self.steps_before + self.model.num_timesteps - self.start)
+
+    def _on_step(self) -> bool:
+        return not self.learner.session["converged"]
+
+
+class SB3Learner:
+    """An SB3 model in training, as a curriculum drives it (see the module docstring).
+
+    ``seed`` seeds the model's random streams (SB3's ``set_random_seed``)
+    and the environments at the start of each session; ``log_name`` names
+    its TensorBoard log (when the model has a ``tensorboard_log`` folder) and
+    ``log_names`` those of its branches, by seed.
+    """
+
+    def __init__(
+        self,
+        model: BaseAlgorithm,
+        *,
+        algo: str,
+        robot: str,
+        seed: int,
+        n_envs: int,
+        eval_every: int,
+        log_name: str = "curriculum",
+        log_names: Mapping[int, str] | None = None,
+        session: dict[str, Any] | None = None,
+    ) -> None:
+        self.model = model
+        self.algo = algo
+        self.robot = as_robot(robot).to_string()
+        self.seed = int(seed)
+        self.n_envs = int(n_envs)
+        self.eval_every = int(eval_every)
+        self.log_name = log_name
+        self.log_names = dict(log_names or {})
+        self.session: dict[str, Any] | None = session
+        self._checkpoint: Callable[[], None] | None = None
+        self._evaluator: Evaluator | None = None
+        self._clock = (time.monotonic(), 0.0)
+
+    @property
+    def rollout(self) -> int:
+        """Env steps of one rollout."""
+        return int(self.model.n_steps) * self.n_envs
+
+    def session_target(self, budget_steps: int) -> int:
+        """The steps of a whole session: whole rollouts within the budget, at least one."""
+        return max(1, budget_steps // self.rollout) * self.rollout
+
+    # -- the protocol -----------------------------------------------------------
+
+    def train(
+        self,
+        mazes: Sequence[str],
+        budget_steps: int,
+        *,
+        checkpoint: Callable[[], None] | None = None,
+    ) -> TrainingOutcome:
+        """One session on ``mazes`` (continued if this learner was saved inside it)."""
+        mazes = [MazeSpec.from_string(str(m)).to_string() for m in mazes]
+        budget_steps = int(budget_steps)
+        session = self.session
+        if session is None or session["mazes"] != mazes or session["budget"] != budget_steps:
+            session = self.session = {
+                "mazes": mazes,
+                "budget": budget_steps,
+                "steps": 0,
+                "seconds": 0.0,
+                "converged": False,
+                "last_eval": None,
+            }
+        self._checkpoint = checkpoint
+        self._evaluator = Evaluator(self.robot, mazes, inputs=False)
+        self._clock = (time.monotonic(), float(session["seconds"]))
+        target = self.session_target(budget_steps)
+        model = self.model
+        model.set_env(SB3VecEnv(mazes, self.robot, self.n_envs, self.seed))
+        # A session draws from the learner's seed (a continued one, from the seed and
+        # the steps done), so its draws depend on nothing that ran before it.
+        seed = self.seed
+        if session["steps"]:
+            seed = int(np.random.SeedSequence([seed, session["steps"]]).generate_state(1)[0])
+        model.set_random_seed(seed & 0x7FFF_FFFF)
+        if not session["converged"] and session["steps"] < target:
+            self._session_point(session["steps"])
+        if not session["converged"] and session["steps"] < target:
+            start = int(model.num_timesteps)
+            callback = _SessionCallback(self, start, session["steps"])
+            model.learn(
+                total_timesteps=target - session["steps"],
+                callback=callback,
+                reset_num_timesteps=False,
+                tb_log_name=self.log_name,
+            )
+            session["steps"] = callback.steps_before + int(model.num_timesteps) - start
+        outcome = TrainingOutcome(
+            env_steps=int(session["steps"]),
+            seconds=self._seconds(),
+            converged=bool(session["converged"]),
+        )
+        self.session = None
+        self._checkpoint = None
+        return outcome
+
+    def branch(self, seed: int) -> SB3Learner:
+        """An independent copy (weights, optimiser state) whose sessions draw from ``seed``."""
+        with tempfile.TemporaryDirectory(prefix="sb3-branch-") as folder:
+            path = Path(folder) / MODEL_FILE
+            buffer = io.BytesIO()
+            self.model.save(buffer)
+            path.write_bytes(buffer.getvalue())
+            model = load_sb3_model(
+                path, self.algo, self.robot, tensorboard_log=self.model.tensorboard_log
+            )
+        return SB3Learner(
+            model,
+            algo=self.algo,
+            robot=self.robot,
+            seed=int(seed),
+            n_envs=self.n_envs,
+            eval_every=self.eval_every,
+            log_name=self.log_names.get(int(seed), f"seed-{int(seed)}"),
+            log_names=self.log_names,
+        )
+
+    def agent(self) -> SB3Agent:
+        """The model, acting deterministically."""
+        return SB3Agent(self.model, self.robot, self.algo)
+
+    def save(self, folder: Path) -> None:
+        """``model.zip`` and ``learner.json`` in ``folder``, each written atomically."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        if self.session is not None:
+            self.session["seconds"] = self._seconds()
+        tmp = folder / f".{MODEL_FILE}.tmp.zip"
+        self.model.save(tmp)
+        os.replace(tmp, folder / MODEL_FILE)
+        write_json(folder / LEARNER_FILE, self.state())
+
+    def state(self) -> dict[str, Any]:
+        """The content of ``learner.json``."""
+        return {
+            "format": LEARNER_FORMAT,
+            "algo": self.algo,
+            "robot": self.robot,
+            "seed": self.seed,
+            "n_envs": self.n_envs,
+            "eval_every": self.eval_every,
+            "log_name": self.log_name,
+            "num_timesteps": int(self.model.num_timesteps),
+            "session": self.session,
+        }
+
+    # -- the session's own --------------------------------------------------------
+
+    def _seconds(self) -> float:
+        started, before = self._clock
+        return before + (time.monotonic() - started)
+
+    def _session_point(self, steps: int, logger: Any = None) -> None:
+        """A rollout starts at ``steps`` of the session: evaluate if due, then checkpoint."""
+        session = self.session
+        assert session is not None and self._evaluator is not None
+        session["steps"] = int(steps)
+        last = session["last_eval"]
+        if last is not None and steps - last < self.eval_every:
+            return
+        report = self._evaluator.evaluate(self.agent())
+        session["converged"] = all(e.paper_reward >= OPTIMAL for e in report.episodes)
+        session["last_eval"] = int(steps)
+        if logger is not None:  # inside SB3's learn: the session's TensorBoard log
+            summary = report.summary()
+            logger.record("eval/success_rate", float(summary["success_rate"]))
+            logger.record("eval/rbar", float(summary["normalized_reward"]))
+            logger.dump(int(self.model.num_timesteps))
+        if self._checkpoint is not None:
+            self._checkpoint()
+
+
+def _checked_session(data: Any, source: str) -> dict[str, Any] | None:
+    """The session of ``learner.json``, every field checked."""
+    if data is None:
+        return None
+    if not isinstance(data, dict):
+        raise RLConfigError(f"{source}: session {data!r} is not null or a JSON object")
+    mazes = data.get("mazes")
+    if not isinstance(mazes, list) or not mazes or not all(isinstance(m, str) for m in mazes):
+        raise RLConfigError(f"{source}: session mazes {mazes!r} is not a list of mazes")
+    try:
+        mazes = [MazeSpec.from_string(m).to_string() for m in mazes]
+    except ValueError as problem:
+        raise RLConfigError(f"{source}: session mazes: {problem}") from None
+
+    def integer(name: str, minimum: int) -> int:
+        return check_integer(
+            f"{source}: session {name}", data.get(name), minimum=minimum, error=RLConfigError
+        )
+
+    if not isinstance(data.get("converged"), bool):
+        raise RLConfigError(f"{source}: session converged {data.get('converged')!r} is not a bool")
+    last = data.get("last_eval")
+    return {
+        "mazes": mazes,
+        "budget": integer("budget", 0),
+        "steps": integer("steps", 0),
+        "seconds": check_number(
+            f"{source}: session seconds", data.get("seconds"), minimum=0, error=RLConfigError
+        ),
+        "converged": data["converged"],
+        "last_eval": None if last is None else integer("last_eval", 0),
+    }
+
+
+def load_sb3_learner(
+    folder: str | os.PathLike,
+    *,
+    algo: str,
+    robot: str,
+    n_envs: int,
+    tensorboard_log: str | None = None,
+    log_names: Mapping[int, str] | None = None,
+) -> SB3Learner:
+    """The learner saved in ``folder`` by :meth:`SB3Learner.save`, checked against the run.
+
+    ``algo``, ``robot`` and ``n_envs`` are the run's: a learner saved with
+    others is refused. Any missing, damaged or inconsistent file raises
+    :class:`RLConfigError` naming it; nothing is unpickled.
+    """
+    folder = Path(folder)
+    path = folder / LEARNER_FILE
+    source = f"learner file {str(path)!r}"
+    data = read_json_object(path, RLConfigError, "learner file")
+    robot = as_robot(robot).to_string()
+    expected = {"format": LEARNER_FORMAT, "algo": algo, "robot": robot, "n_envs": n_envs}
+    for key, value in expected.items():
+        if data.get(key) != value:
+            raise RLConfigError(f"{source}: {key} {data.get(key)!r} is not {value!r}")
+    seed = check_integer(f"{source}: seed", data.get("seed"), minimum=0, error=RLConfigError)
+    eval_every = check_integer(
+        f"{source}: eval_every", data.get("eval_every"), minimum=1, error=RLConfigError
+    )
+    steps = check_integer(
+        f"{source}: num_timesteps", data.get("num_timesteps"), minimum=0, error=RLConfigError
+    )
+    log_name = data.get("log_name")
+    if not isinstance(log_name, str) or not log_name or "/" in log_name or "\\" in log_name:
+        raise RLConfigError(f"{source}: log_name {log_name!r} is not a plain name")
+    session = _checked_session(data.get("session"), source)
+    model_path = folder / MODEL_FILE
+    if not (model_path.exists() or model_path.is_symlink()):
+        raise RLConfigError(f"model file {str(model_path)!r} is missing")
+    model = load_sb3_model(model_path, algo, robot, tensorboard_log=tensorboard_log)
+    if int(model.num_timesteps) != steps:
+        raise RLConfigError(
+            f"{source}: num_timesteps {steps} is not the {int(model.num_timesteps)} of"
+            f" {str(model_path)!r} (the two files are of different saves)"
+        )
+    return SB3Learner(
+        model,
+        algo=algo,
+        robot=robot,
+        seed=seed,
+        n_envs=n_envs,
+        eval_every=eval_every,
+        log_name=log_name,
+        log_names=log_names,
+        session=session,
+    )

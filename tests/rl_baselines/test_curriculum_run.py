@@ -1,0 +1,191 @@
+"""``amaze-train`` in the curriculum regimes: the EDHuCAT loop with an SB3 learner."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rl_baselines.cli import main
+from rl_baselines.curriculum import SB3CurriculumRun
+from rl_baselines.learner import SB3Learner
+from rl_baselines.train import SB3Run, TrainConfig, train
+
+#: Two stages of two branches; A2C's default rollout (20 steps) fits the 150-step allowance.
+A2C = ["--algo", "a2c", "--regime", "edhucat", "--curator", "random", "--stages", "2"]
+A2C += ["--branches", "2", "--budget-steps", "600", "--eval-every", "40", "--no-progress"]
+
+
+def _decisions(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / "decisions.jsonl").read_text().splitlines()]
+
+
+def _choices(out: Path) -> list:
+    return [(d["stage"], d["kind"], d.get("mazes"), d.get("choice")) for d in _decisions(out)]
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    with (out / "progress.csv").open(newline="") as stream:
+        return list(csv.DictReader(stream))
+
+
+def _learner_steps(folder: Path) -> int:
+    return json.loads((folder / "agent" / "learner.json").read_text())["num_timesteps"]
+
+
+@pytest.fixture(scope="module")
+def a2c_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("edhucat") / "a2c"
+    assert main([*A2C, "--seed", "1", "--out", str(out)]) == 0
+    return out
+
+
+def test_the_curriculum_regimes_run_as_the_curriculum_loop() -> None:
+    for regime, run_class in [("direct", SB3Run), ("edhucat", SB3CurriculumRun)]:
+        config = TrainConfig.from_dict({"regime": regime})
+        assert SB3Run.run_class_for(config) is run_class
+    assert SB3Run.run_class_for(TrainConfig.from_dict({"regime": "interpolation"})) is (
+        SB3CurriculumRun
+    )
+
+
+def test_an_edhucat_run_writes_the_curriculum_folder(a2c_run: Path) -> None:
+    out = a2c_run
+    for name in ("config.json", "decisions.jsonl", "curriculum.png", "summary.json"):
+        assert (out / name).is_file(), name
+    assert [(d["stage"], d["kind"]) for d in _decisions(out)] == [
+        (0, "generate"),
+        (1, "select"),
+        (1, "generate"),
+        (2, "select"),
+    ]
+    branches = sorted(p.relative_to(out / "stages") for p in out.glob("stages/*/branch-*"))
+    assert [str(b) for b in branches] == [
+        "stage-0/branch-0",
+        "stage-1/branch-0",
+        "stage-1/branch-1",
+    ]
+    for branch in branches:
+        folder = out / "stages" / branch
+        assert {"agent", "result.json", "trajectory.png"} <= {p.name for p in folder.iterdir()}
+        assert not (folder / "checkpoint").exists()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["algo"] == "a2c" and summary["curator"] == "random"
+    assert summary["hyperparameters_used"] == {"n_steps": 5}
+    assert len(summary["curriculum"]) == 2 and len(summary["final_lineage"]) == 2
+    # stage 0: 7 rollouts of 20 within 600 // 4; stage 1: 11 within (600 - 140) // 2
+    assert [int(r["steps"]) for r in _rows(out)] == [140, 360, 580]
+    assert summary["env_steps"] == 580 <= 600
+    logs = {p.parent.name for p in (out / "tensorboard").rglob("events.out.tfevents.*")}
+    assert logs == {"stage-0-branch-0_0", "stage-1-branch-0_0", "stage-1-branch-1_0"}
+    # each branch continues its parent's model
+    assert _learner_steps(out / "stages/stage-1/branch-1") == 140 + 220
+
+
+def test_ppo_fits_its_rollout_to_a_tiny_budget(tmp_path: Path) -> None:
+    out = tmp_path / "ppo"
+    argv = ["--algo", "ppo", "--regime", "edhucat", "--curator", "random", "--stages", "2"]
+    argv += ["--branches", "2", "--budget-steps", "2000", "--eval-every", "256"]
+    assert main([*argv, "--no-tensorboard", "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    # 2000 // 4 = 500 steps per branch: 64 steps x 4 environments (256) fits, 128 x 4 does not
+    assert summary["hyperparameters_used"] == {"n_steps": 64, "batch_size": 64}
+    assert json.loads((out / "config.json").read_text())["hyperparameters"] == {}
+    assert int(_rows(out)[0]["steps"]) == 256
+    assert summary["env_steps"] <= 2000 and not (out / "tensorboard").exists()
+
+
+def test_the_interpolation_regime_is_the_loop_with_one_branch(tmp_path: Path) -> None:
+    out = tmp_path / "interpolation"
+    config = {"algo": "a2c", "regime": "interpolation", "stages": 3, "budget_steps": 300}
+    result = train({**config, "tensorboard": False}, out)
+    decisions = _decisions(out)
+    assert {d["curator"] for d in decisions} == {"interpolation"}
+    assert result.summary["branches"] == 1 and result.summary["regime"] == "interpolation"
+    assert [int(r["stage"]) for r in _rows(out)] == [0, 1, 2]
+    final = [d["mazes"] for d in decisions if d["kind"] == "generate"][-1]
+    assert final == [result.summary["target"]]
+
+
+def test_a_replay_makes_the_same_decisions(a2c_run: Path, tmp_path: Path) -> None:
+    out = tmp_path / "replay"
+    assert main(["--replay", str(a2c_run), "--out", str(out), "--no-progress"]) == 0
+    assert _choices(out) == _choices(a2c_run)
+    assert all(d.get("replayed") for d in _decisions(out))
+    assert json.loads((out / "config.json").read_text())["replay"] == str(a2c_run)
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_resume_after_a_kill_mid_stage_continues_the_branch(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "run"
+    save = SB3Learner.save
+    saves = 0
+
+    def killing_save(learner: SB3Learner, folder: Path) -> None:
+        nonlocal saves
+        save(learner, folder)
+        if Path(folder).name == "checkpoint" and Path(folder).parent.parent.name == "stage-1":
+            saves += 1
+            if saves == 3:  # at 80 of the branch's 220 steps
+                raise _Killed
+
+    monkeypatch.setattr(SB3Learner, "save", killing_save)
+    with pytest.raises(_Killed):
+        main([*A2C, "--seed", "2", "--out", str(out)])
+    monkeypatch.undo()
+    checkpoint = out / "stages/stage-1/branch-0/checkpoint"
+    assert checkpoint.is_dir() and not (out / "summary.json").exists()
+    session = json.loads((checkpoint / "learner.json").read_text())["session"]
+    assert session["steps"] == 80
+    before = (out / "decisions.jsonl").read_text()
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    assert (out / "decisions.jsonl").read_text().startswith(before)
+    assert len(_decisions(out)) == 4 and not checkpoint.exists()
+    result = json.loads((out / "stages/stage-1/branch-0/result.json").read_text())
+    assert result["env_steps"] == 220
+    # the session went on from its checkpoint: 140 (stage 0) + 220, not 140 + 80 + 220
+    assert _learner_steps(out / "stages/stage-1/branch-0") == 360
+    assert [int(r["branches"]) for r in _rows(out)] == [1, 2, 3]
+
+
+def test_a_damaged_checkpoint_is_refused_by_name(
+    a2c_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    shutil.copytree(a2c_run, out)
+    (out / "summary.json").unlink()
+    branch = out / "stages/stage-1/branch-1"
+    shutil.rmtree(branch)
+    (branch / "checkpoint").mkdir(parents=True)
+    (branch / "checkpoint" / "learner.json").write_text("{}")
+    assert main(["--resume", str(out)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "learner.json" in err[0], err
+
+
+def test_a_bad_curator_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    argv = ["--regime", "edhucat", "--curator", "nobody", "--out", str(tmp_path / "run")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "'nobody'" in err[0], err
+    assert not (tmp_path / "run").exists()
+
+
+def test_bad_hyperparameters_fail_before_the_folder_is_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    config = tmp_path / "hyper.json"
+    config.write_text(json.dumps({"batch_size": 1}))  # PPO asserts batch_size > 1
+    argv = ["--algo", "ppo", "--regime", "edhucat", "--curator", "random", "--stages", "2"]
+    assert main([*argv, "--config", str(config), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "bad hyperparameters for ppo" in err[0], err
+    assert not (tmp_path / "run").exists()

@@ -18,7 +18,7 @@ from pathlib import Path
 from PIL import Image, ImageDraw, ImageFont
 
 from amaze.curriculum.curators import StageRecord
-from amaze.maze.render import render_maze
+from amaze.maze.render import MIN_CELL_SIZE, render_maze
 from amaze.maze.spec import MazeSpec
 
 __all__ = ["render_curriculum", "save_curriculum_png"]
@@ -84,7 +84,7 @@ def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.
             maze = candidate.mazes[0]
             spec = MazeSpec.from_string(maze)
             side = max(spec.width, spec.height)
-            thumbnail = render_maze(maze, cell_size=max(2, THUMBNAIL // side))
+            thumbnail = render_maze(maze, cell_size=max(MIN_CELL_SIZE, THUMBNAIL // side))
             thumbnail.thumbnail((THUMBNAIL, THUMBNAIL))
             image.paste(thumbnail, (x0 + (THUMBNAIL - thumbnail.width) // 2, y0))
             if record.selected == candidate.branch:

@@ -36,3 +36,11 @@ def test_a_curriculum_renders_with_its_selections_and_final_choice(tmp_path: Pat
     # an unfinished curriculum (no final choice yet) has no final frame
     unfinished = [*records()[:1], StageRecord(1, records()[1].mazes, records()[1].candidates)]
     assert colour_count(render_curriculum(unfinished), FINAL) == 0
+
+
+def test_large_mazes_shrink_to_thumbnails_of_the_same_size() -> None:
+    mazes = ("M2_8x8_C1", "M3_100x100_C1", "M4_30x45_U")
+    stage = StageRecord(0, mazes, tuple(candidate(0, b, m) for b, m in enumerate(mazes)), 0)
+    small = render_curriculum([StageRecord(0, mazes[:1], stage.candidates[:1], 0)])
+    large = render_curriculum([stage])
+    assert large.height == small.height  # one row, thumbnails no taller than small ones

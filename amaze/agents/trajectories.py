@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
+from PIL import Image, ImageDraw
 
 from amaze.agents.robot import RADIUS, Robot, as_robot
 from amaze.agents.simulation import Trajectory
@@ -49,6 +49,7 @@ from amaze.maze.render import (
     Palette,
     RenderError,
     RenderOptions,
+    load_font,
     render_maze,
 )
 from amaze.maze.spec import MazeSpec
@@ -550,13 +551,6 @@ def _glyph(
 # -- captions -------------------------------------------------------------------------
 
 
-def _font(size: int) -> Any:
-    try:
-        return ImageFont.load_default(size=size)
-    except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType
-        return ImageFont.load_default()
-
-
 def _summary(episode: _Episode) -> str:
     n = episode.n_steps
     parts = [f"goal reached in {n} steps" if episode.success else f"goal not reached, {n} steps"]
@@ -636,7 +630,7 @@ def _add_caption(
     colors = options.colors
     left = layout.margin
     width = layout.width * layout.cell_size
-    font = _font(max(10, min(15, image.width // 40)))
+    font = load_font(max(10, min(15, image.width // 40)))
     line_h = int(font.getbbox("Mg_0")[3]) + 3
     bar_h = max(4, line_h // 3)
     lines = _wrap_words(text, font, width)

@@ -15,10 +15,10 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from PIL import Image, ImageDraw, ImageFont
+from PIL import Image, ImageDraw
 
 from amaze.curriculum.curators import StageRecord
-from amaze.maze.render import MIN_CELL_SIZE, render_maze
+from amaze.maze.render import MIN_CELL_SIZE, load_font, render_maze
 from amaze.maze.spec import MazeSpec
 
 __all__ = ["render_curriculum", "save_curriculum_png"]
@@ -32,13 +32,6 @@ SELECTED = (214, 39, 40)
 FINAL = (17, 128, 64)
 LINEAGE = (31, 119, 180)
 TEXT = (30, 30, 30)
-
-
-def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
-    try:
-        return ImageFont.load_default(size=size)
-    except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType
-        return ImageFont.load_default()
 
 
 def _count(steps: int) -> str:
@@ -64,7 +57,7 @@ def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.
     height = top + max(len(records), 1) * cell_h + PAD
     image = Image.new("RGB", (width, height), "white")
     draw = ImageDraw.Draw(image)
-    font, small = _font(14), _font(11)
+    font, small = load_font(14), load_font(11)
     if title:
         draw.text((PAD, 8), title, fill=TEXT, font=font)
 

@@ -21,13 +21,12 @@ import math
 import os
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
+from PIL import Image, ImageDraw
 
 from amaze.evaluation.inputs import InputClass, InputRecognition, InputRecognitionError
-from amaze.maze.render import Palette, palette
+from amaze.maze.render import Palette, load_font, palette
 from amaze.maze.sign_images import sign_frames
 from amaze.maze.signs import Sign
 from amaze.validation import check_integer
@@ -79,13 +78,6 @@ _WALL = (255, 255, 255)
 _TILE = (0, 0, 0)
 
 
-def _font(size: int) -> Any:
-    try:
-        return ImageFont.load_default(size=size)
-    except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType
-        return ImageFont.load_default()
-
-
 @lru_cache(maxsize=128)
 def _sign_picture(sign: Sign, direction: int, size: int) -> Image.Image:
     """The sign at its lightness, ``size`` px, antialiased by drawing 4x larger."""
@@ -117,7 +109,7 @@ class _SummaryPicture:
         self.arrow = self.ring + max(10, round(self.cell * 0.28))
         self.slot = self.cell + 2 * self.arrow
         self.expected_color = colors.path
-        self.fonts = {size: _font(size) for size in (12, 13, 15, 22)}
+        self.fonts = {size: load_font(size) for size in (12, 13, 15, 22)}
         self.muted = _mix(colors.text, colors.background, 0.45)
         self.faint = _mix(colors.text, colors.background, 0.85)
         self.plate_edge = _mix(colors.text, colors.background, 0.7)

@@ -557,7 +557,7 @@ def render_mazes_grid(
         for row in range(n_rows)
     ]
     pad = 8
-    font = _font(max(10, min(14, min(col_w) // 16)))
+    font = load_font(max(10, min(14, min(col_w) // 16)))
     line_h = _text_height(font) + 2
     lines = (
         [_wrap(text, font, col_w[col]) for text, (_, col) in zip(captions, slots, strict=True)]
@@ -590,7 +590,12 @@ def render_mazes_grid(
     return grid
 
 
-def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+def load_font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+    """Pillow's default font at ``size`` px (its bitmap font where FreeType is missing).
+
+    The one font of every picture the package draws (mazes, trajectories,
+    input recognition, curricula), so captions look alike everywhere.
+    """
     try:
         return ImageFont.load_default(size=size)
     except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType

@@ -185,3 +185,31 @@ def test_neat_in_the_interpolation_regime(tmp_path: Path) -> None:
     assert main(["--replay", str(out), "--out", str(tmp_path / "again"), "--no-progress"]) == 0
     assert snapshot(out) == before
     assert _same(_final_champion(tmp_path / "again"), _final_champion(out))
+
+
+def test_a_person_at_the_terminal_curates_typing_mistakes_and_all(tmp_path: Path) -> None:
+    """The human curator through amaze-evolve: bad typing is asked again, EOF stops cleanly."""
+    out = tmp_path / "run"
+    cli = [sys.executable, "-m", "evolution.cli"]
+
+    def play(args: list[str], typed: str) -> subprocess.CompletedProcess:
+        return subprocess.run([*cli, *args], input=typed, capture_output=True, text=True, cwd=ROOT)
+
+    human = [*ARGS[:3], "human", *ARGS[4:]]
+    # Stage 1's two mazes: a bad string, then one typed, then the suggestion; then the
+    # input ends before the final choice.
+    first = play([*human, "--out", str(out), "--no-progress"], "M1_5x5_Q\nM3_6x6_C1\n\n")
+    assert first.returncode == 2
+    assert "bad maze 'M1_5x5_Q'" in first.stdout
+    assert first.stderr.strip().splitlines() == [
+        "error: the human curator's input ended (end of file) before the decision was made;"
+        " the decisions made so far are recorded: resume the run to go on"
+    ]
+    made = _decisions(out)
+    assert made[-1][:2] == (1, "generate") and made[-1][3][0] == "M3_6x6_C1"
+    # Resumed, it asks only the final choice: a wrong branch number first.
+    second = play(["--resume", str(out), "--no-progress"], "7\nzero\n1\n")
+    assert second.returncode == 0, second.stderr
+    assert _decisions(out)[: len(made)] == made
+    assert _decisions(out)[-1][:3] == (2, "select", 1)
+    assert json.loads((out / "summary.json").read_text())["final_lineage"] == [0, 1]

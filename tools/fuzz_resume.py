@@ -2,9 +2,12 @@
 
     python tools/fuzz_resume.py evolve 300
     python tools/fuzz_resume.py train 150
+    python tools/fuzz_resume.py evolve-edhucat 200
+    python tools/fuzz_resume.py train-edhucat 100
 
 A small run of the trainer is made once, in a temporary folder. Each try copies
-it, damages one of its files (random byte flips, a truncation, inserted bytes
+it (a curriculum run without its last branch's result, as if killed while
+training it), damages one of its files (random byte flips, a truncation, inserted bytes
 or a zeroed span, from a seeded generator) and resumes it in-process. A try
 ends as ``resumed`` (the damage was harmless), ``refused`` (exit 2 with exactly
 one ``error:`` line: the contract) or as a failure: a ``traceback`` or any
@@ -46,6 +49,45 @@ RUNS = {
         ],
     ),
 }
+#: Curriculum runs: 2 stages x 2 branches with the random curator.
+CURRICULUM = {
+    "regime": "edhucat",
+    "curator": "random",
+    "stages": 2,
+    "branches": 2,
+    "target": "M0_6x6_C1",
+}
+CURRICULUM_FILES = [
+    "config.json",
+    "progress.csv",
+    "decisions.jsonl",
+    "stages/stage-0/branch-0/result.json",
+    "stages/stage-1/branch-0/result.json",
+]
+RUNS["evolve-edhucat"] = (
+    {
+        **CURRICULUM,
+        "algo": "cmaes",
+        "budget_steps": 20000,
+        "checkpoint_seconds": 0,
+        "algorithm": {"population_size": 6},
+    },
+    [
+        *CURRICULUM_FILES,
+        "stages/stage-0/branch-0/agent/learner.pkl",
+        "stages/stage-0/branch-0/agent/champion.npz",
+        "stages/stage-1/branch-0/agent/learner.pkl",
+    ],
+)
+RUNS["train-edhucat"] = (
+    {**CURRICULUM, "algo": "a2c", "budget_steps": 400, "eval_every": 20, "tensorboard": False},
+    [
+        *CURRICULUM_FILES,
+        "stages/stage-0/branch-0/agent/model.zip",
+        "stages/stage-0/branch-0/agent/learner.json",
+        "stages/stage-1/branch-0/agent/learner.json",
+    ],
+)
 
 
 def damage(data: bytearray, rng: random.Random) -> tuple[str, bytearray]:
@@ -70,7 +112,7 @@ def main() -> int:
     parser.add_argument("tries", type=int)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    if args.trainer == "evolve":
+    if args.trainer.startswith("evolve"):
         from evolution.cli import main as command
         from evolution.run import evolve as make
     else:
@@ -83,6 +125,9 @@ def main() -> int:
         base = Path(scratch) / "run"
         make(config, base)
         (base / "summary.json").unlink()  # as if killed after its last checkpoint
+        last = base / "stages/stage-1/branch-1/result.json"
+        if last.exists():  # a curriculum run: killed while training its last branch
+            last.unlink()
         for index in range(args.tries):
             out = Path(scratch) / f"try-{index}"
             shutil.copytree(base, out)

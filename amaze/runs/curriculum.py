@@ -142,7 +142,9 @@ class CurriculumConfig(RunConfig):
         None, "branches K per stage (default: 3 for edhucat, 1 for interpolation)", metavar="K"
     )
     target: str = option(
-        PAPER_TRAINING_MAZE, "the maze a curriculum leads to (default: the paper's training maze)"
+        PAPER_TRAINING_MAZE,
+        "the maze a curriculum leads to (interpolation's end, the curators' target)",
+        metavar="MAZE",
     )
     curator_options: dict[str, Any] = option(
         default_factory=dict, help="the curator's own options", command_line=False

@@ -18,8 +18,9 @@ holds no state of its own and a resumed run asks it the same questions with
 the same answers.
 
 **Finding curators by name.** :data:`BUILTIN_CURATORS` are the package's
-own (the scripted human strategies of :mod:`amaze.curriculum.strategies`
-and the terminal curator of :mod:`amaze.curriculum.human`); any installed
+own (the scripted human strategies of :mod:`amaze.curriculum.strategies`,
+the automated EDEnS-style curator of :mod:`amaze.curriculum.edens` and the
+terminal curator of :mod:`amaze.curriculum.human`); any installed
 distribution adds its own under the entry-point group ``amaze.curators``::
 
     [project.entry-points."amaze.curators"]
@@ -28,6 +29,12 @@ distribution adds its own under the entry-point group ``amaze.curators``::
 after which ``--curator mine`` works in ``amaze-train`` and ``amaze-evolve``.
 A curator class takes the context as its only argument and has a ``name``;
 built-in names cannot be taken by a plug-in.
+
+**Validation mazes.** A curator that judges candidates on mazes none of
+them trained on gives them as an attribute ``validation`` (maze strings; see
+:mod:`amaze.curriculum.validation` for mazes disjoint from the evaluation
+suite): the loop plays every candidate on their 4 rotations and shows the
+results in :attr:`Candidate.validation`.
 """
 
 from __future__ import annotations
@@ -69,6 +76,7 @@ BUILTIN_CURATORS: dict[str, str] = {
     "risky": "amaze.curriculum.strategies:RiskyCurator",
     "random": "amaze.curriculum.strategies:RandomCurator",
     "interpolation": "amaze.curriculum.strategies:InterpolationCurator",
+    "edens": "amaze.curriculum.edens:EdensCurator",
     "human": "amaze.curriculum.human:TerminalCurator",
 }
 
@@ -144,6 +152,8 @@ class Candidate:
     lineage_steps: int
     #: Pictures of its trajectories (its own mazes), for a human to look at.
     pictures: tuple[Path, ...] = field(default=(), compare=False)
+    #: Its results on the curator's validation mazes (empty if the curator has none).
+    validation: tuple[MazeResults, ...] = ()
 
     @property
     def success_rate(self) -> float:
@@ -170,9 +180,28 @@ class Candidate:
         """Mean R̄ on every maze of the stage."""
         return _mean([v for r in self.own + self.others for v in r.paper_reward])
 
+    @property
+    def validation_success_rate(self) -> float:
+        """Success rate on the curator's validation mazes (NaN without any)."""
+        return _mean([s for r in self.validation for s in r.success])
+
+    @property
+    def validation_mean_reward(self) -> float:
+        """Mean R̄ on the curator's validation mazes (NaN without any)."""
+        return _mean([v for r in self.validation for v in r.paper_reward])
+
     def figures(self) -> dict[str, Any]:
         """The figures a decision record keeps of the candidate."""
+        validation = (
+            {
+                "validation_success_rate": self.validation_success_rate,
+                "validation_mean_reward": self.validation_mean_reward,
+            }
+            if self.validation
+            else {}
+        )
         return {
+            **validation,
             "branch": self.branch,
             "success_rate": self.success_rate,
             "mean_reward": self.mean_reward,

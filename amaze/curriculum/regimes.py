@@ -11,7 +11,9 @@
   ``interpolation`` curator and one branch per stage;
 * **edhucat** (paper, Algorithm 1): the curriculum loop with K branches per
   stage and a curator (:mod:`amaze.curriculum.curators`) that selects the
-  agent that goes on and generates the next mazes.
+  agent that goes on and generates the next mazes;
+* **edens**: the same loop with the automated EDEnS-style curator
+  (:mod:`amaze.curriculum.edens`), the short form of ``edhucat --curator edens``.
 
 :func:`branch_allowance` shares a curriculum's budget between its stages and
 branches.
@@ -21,9 +23,9 @@ from __future__ import annotations
 
 __all__ = ["CURRICULUM_REGIMES", "REGIMES", "branch_allowance"]
 
-REGIMES = ("direct", "interpolation", "edhucat")
+REGIMES = ("direct", "interpolation", "edhucat", "edens")
 #: The regimes played by the curriculum loop (stages of branches chosen by a curator).
-CURRICULUM_REGIMES = ("interpolation", "edhucat")
+CURRICULUM_REGIMES = ("interpolation", "edhucat", "edens")
 
 
 def branch_allowance(budget: int, used: int, stage: int, stages: int, branches: int) -> int:

@@ -34,7 +34,8 @@ agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_
   training, saved by the trainer), ``result.json`` (the candidate: mazes,
   results per maze and rotation on every maze of the stage, in branch order,
   lineage, steps,
-  seconds; written last, so a branch with a result is finished),
+  seconds, and its results on the curator's validation mazes if it has
+  any; written last, so a branch with a result is finished),
   ``trajectory.png`` (the agent on its maze) and, while it trains,
   ``checkpoint/`` (the learner mid-session);
 * ``progress.csv``: one row per finished branch;
@@ -103,8 +104,8 @@ REPLAY_FILE = "replay.jsonl"
 MAX_BRANCHES = 64
 #: The default numbers of stages and branches (the paper's S and K).
 DEFAULT_STAGES = 10
-DEFAULT_BRANCHES = {"edhucat": 3, "interpolation": 1}
-DEFAULT_CURATOR = {"edhucat": "careful", "interpolation": "interpolation"}
+DEFAULT_BRANCHES = {"edhucat": 3, "interpolation": 1, "edens": 3}
+DEFAULT_CURATOR = {"edhucat": "careful", "interpolation": "interpolation", "edens": "edens"}
 PROGRESS_FIELDS = (
     "branches",
     "stage",
@@ -131,7 +132,7 @@ class CurriculumConfig(RunConfig):
     curator: str | None = option(
         None,
         "who selects agents and generates mazes in the edhucat regime: careful, moderate,"
-        " risky, random, human, interpolation or a plug-in's name (default: careful)",
+        " risky, random, edens, human, interpolation or a plug-in's name (default: careful)",
         metavar="NAME",
     )
     stages: int | None = option(
@@ -139,7 +140,9 @@ class CurriculumConfig(RunConfig):
         metavar="S",
     )  # fmt: skip
     branches: int | None = option(
-        None, "branches K per stage (default: 3 for edhucat, 1 for interpolation)", metavar="K"
+        None,
+        "branches K per stage (default: 3 for edhucat and edens, 1 for interpolation)",
+        metavar="K",
     )
     target: str = option(
         PAPER_TRAINING_MAZE,
@@ -173,9 +176,10 @@ class CurriculumConfig(RunConfig):
             return self
         if self.curator is None:
             self.curator = DEFAULT_CURATOR[self.regime]
-        if self.regime == "interpolation" and self.curator != "interpolation":
+        own = DEFAULT_CURATOR[self.regime]
+        if self.regime != "edhucat" and self.curator != own:
             raise self.error(
-                f"curator {self.curator!r}: the interpolation regime's curator is interpolation"
+                f"curator {self.curator!r}: the {self.regime} regime's curator is {own}"
                 " (use --regime edhucat for another curator)"
             )
         if not isinstance(self.curator, str) or self.curator not in curator_names():
@@ -360,6 +364,20 @@ def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
+def _maze_results(evaluator: Evaluator, agent: Any, mazes: Sequence[str]) -> list[MazeResults]:
+    """``agent`` on ``mazes``, each in its 4 rotations (``evaluator`` holds those, in order)."""
+    episodes = evaluator.evaluate(agent).episodes
+    return [
+        MazeResults(
+            maze=maze,
+            success=tuple(e.success for e in episodes[4 * index : 4 * index + 4]),
+            paper_reward=tuple(e.paper_reward for e in episodes[4 * index : 4 * index + 4]),
+            steps=tuple(e.steps for e in episodes[4 * index : 4 * index + 4]),
+        )
+        for index, maze in enumerate(mazes)
+    ]
+
+
 def _candidate_from_dict(data: Mapping[str, Any], folder: Path) -> Candidate:
     """A candidate read from ``result.json`` (any missing or ill-typed key raises)."""
     mazes = tuple(str(m) for m in data["mazes"])
@@ -379,6 +397,7 @@ def _candidate_from_dict(data: Mapping[str, Any], folder: Path) -> Candidate:
         converged=bool(data["converged"]),
         lineage_steps=int(data["lineage_steps"]),
         pictures=tuple(folder / str(p) for p in data.get("pictures", [])),
+        validation=tuple(MazeResults.from_dict(r) for r in data.get("validation", [])),
     )
 
 
@@ -394,6 +413,7 @@ def _candidate_to_dict(candidate: Candidate, results: Sequence[MazeResults]) -> 
         "converged": candidate.converged,
         "lineage_steps": candidate.lineage_steps,
         "pictures": [p.name for p in candidate.pictures],
+        "validation": [r.to_dict() for r in candidate.validation],
         "success_rate": candidate.success_rate,
         "mean_reward": candidate.mean_reward,
     }
@@ -422,6 +442,8 @@ class CurriculumRun(Run):
         self.curator: Curator | None = None
         self.records: list[StageRecord] = []
         self.final: Candidate | None = None
+        #: The curator's validation mazes and their evaluator, if it has any.
+        self.validation: tuple[Evaluator, list[str]] | None = None
 
     # -- the trainer's part ---------------------------------------------------
 
@@ -458,8 +480,16 @@ class CurriculumRun(Run):
         c = self.config
         try:
             self.curator = make_curator(c.curator, c.curator_context())
+            validation = list(getattr(self.curator, "validation", None) or ())
+            if validation:
+                validation = check_mazes(validation, len(validation), c.curator)
         except CuratorError as problem:
             raise c.error(str(problem)) from None
+        self.validation = (
+            (Evaluator(c.robot, rotations(validation), inputs=False), validation)
+            if validation
+            else None
+        )
         if c.replay is not None:
             source = Path(c.replay) / DECISIONS_FILE
             self.replayed = DecisionLog(source).read(c.stages, c.branches, c.error)
@@ -717,18 +747,10 @@ class CurriculumRun(Run):
         training = time.perf_counter() - training  # counted in outcome.seconds already
         learner.save(folder / "agent")
         agent = learner.agent()
-        report = evaluator.evaluate(agent)
-        results = []
-        for index, maze in enumerate(mazes):
-            episodes = report.episodes[4 * index : 4 * index + 4]
-            results.append(
-                MazeResults(
-                    maze=maze,
-                    success=tuple(e.success for e in episodes),
-                    paper_reward=tuple(e.paper_reward for e in episodes),
-                    steps=tuple(e.steps for e in episodes),
-                )
-            )
+        results = _maze_results(evaluator, agent, mazes)
+        validation = []
+        if self.validation is not None:
+            validation = _maze_results(self.validation[0], agent, self.validation[1])
         _, trajectory = record_episode(mazes[branch], c.robot, agent)
         picture = folder / "trajectory.png"
         save_trajectory_png(mazes[branch], trajectory, picture, robot=c.robot, caption=True)
@@ -747,6 +769,7 @@ class CurriculumRun(Run):
             converged=outcome.converged,
             lineage_steps=parent_steps + outcome.env_steps,
             pictures=(picture,),
+            validation=tuple(validation),
         )
         write_json(folder / "result.json", _candidate_to_dict(candidate, results))
         finished = len(list(self.out.glob("stages/stage-*/branch-*/result.json")))

@@ -265,5 +265,10 @@ class Run(ABC):
         write_json(self.out / SUMMARY_FILE, summary)
         run_class = type(self)
         return RunResult(
-            self.out, agent, summary, run_class.headline(summary), tuple(run_class.outputs)
+            self.out,
+            agent,
+            summary,
+            run_class.headline(summary),
+            # only what the run wrote (no tensorboard/ when it was turned off...)
+            tuple(name for name in run_class.outputs if any(self.out.glob(name.rstrip("/")))),
         )

@@ -43,9 +43,10 @@ class EvolveConfig(CurriculumConfig):
 
     In the direct regime, ``budget_steps``, ``budget_seconds`` and
     ``max_generations`` may each be ``None`` (no limit), not all three. In a
-    curriculum regime (``interpolation``, ``edhucat``: :mod:`evolution.curriculum`)
-    the budget is ``budget_steps`` alone and the mazes are the curriculum's,
-    leading to ``target``: ``budget_seconds``, ``max_generations`` and
+    curriculum regime (``interpolation``, ``edhucat``, ``edens``;
+    :mod:`evolution.curriculum`) the budget is ``budget_steps`` and/or
+    ``budget_seconds``, shared between stages and branches, and the mazes are
+    the curriculum's, leading to ``target``: ``max_generations`` and
     ``mazes`` are refused there.
     """
 
@@ -109,18 +110,15 @@ class EvolveConfig(CurriculumConfig):
         return self
 
     def _check_curriculum(self) -> None:
-        """A curriculum's budget is its env steps, and its mazes lead to ``target``."""
+        """A curriculum's budget is env steps and/or seconds; its mazes lead to ``target``."""
         regime = self.regime
-        for name in ("budget_seconds", "max_generations"):
-            if getattr(self, name) is not None:
-                raise EvolutionConfigError(
-                    f"{name} {getattr(self, name)!r} applies to the direct regime; the {regime}"
-                    " regime's budget is budget_steps"
-                )
-        if self.budget_steps is None:
+        if self.max_generations is not None:
             raise EvolutionConfigError(
-                f"the {regime} regime needs budget_steps (its budget is environment steps)"
+                f"max_generations {self.max_generations!r} applies to the direct regime; the"
+                f" {regime} regime's budget is budget_steps or budget_seconds"
             )
+        if self.budget_steps is None and self.budget_seconds is None:
+            raise EvolutionConfigError(f"the {regime} regime needs budget_steps or budget_seconds")
         if self.mazes != [PAPER_TRAINING_MAZE]:
             raise EvolutionConfigError(
                 f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"

@@ -6,10 +6,12 @@ GA). It holds the algorithm's whole state (population, strategy, random
 generators), the robot, the fitness measure, ``checkpoint_seconds`` and the
 current training session.
 
-* ``train(mazes, budget_steps, checkpoint=...)`` plays generations (ask,
-  evaluate on ``mazes`` as given, tell) until the session has spent
-  ``budget_steps`` env steps (a generation is whole, so the last one may pass
-  the budget by less than a generation), the fitness reached its maximum
+* ``train(mazes, budget_steps, budget_seconds=..., checkpoint=...)`` plays
+  generations (ask, evaluate on ``mazes`` as given, tell) until the session
+  has spent ``budget_steps`` env steps or ``budget_seconds`` seconds (a
+  generation is whole, so the last one may pass the budget by less than a
+  generation; a seconds budget makes the session depend on the machine's
+  speed), the fitness reached its maximum
   (*converged*: an individual whose every episode is optimal, R̄ = 1, for
   ``paper_reward`` and ``pretty_reward``; every episode reached for
   ``success``), or the algorithm stopped (CMA-ES with no restart left). A
@@ -69,7 +71,7 @@ class Session:
     """One training session: its mazes and budget, and what it spent and reached so far."""
 
     mazes: tuple[str, ...]
-    budget_steps: int
+    budget_steps: int | None
     steps: int = 0
     seconds: float = 0.0
     eval_seconds: float = 0.0
@@ -77,6 +79,8 @@ class Session:
     converged: bool = False
     #: The best fitness told in the session (the champion's).
     champion_fitness: float | None = None
+    #: Seconds of training the session may spend (``None``: no time limit).
+    budget_seconds: float | None = None
 
 
 @dataclass
@@ -157,21 +161,34 @@ class EvolutionLearner:
     def train(
         self,
         mazes: Sequence[str],
-        budget_steps: int,
+        budget_steps: int | None,
         *,
+        budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
     ) -> TrainingOutcome:
         """A training session on ``mazes`` (as given), or the rest of the one saved mid-way."""
         mazes = tuple(str(m) for m in mazes)
         if not mazes:
             raise EvolutionConfigError("a training session needs at least one maze")
-        budget_steps = check_integer(
-            "budget_steps", budget_steps, minimum=0, error=EvolutionConfigError
-        )
+        if budget_steps is not None:
+            budget_steps = check_integer(
+                "budget_steps", budget_steps, minimum=0, error=EvolutionConfigError
+            )
+        if budget_seconds is not None:
+            budget_seconds = check_number(
+                "budget_seconds", budget_seconds, minimum=0, error=EvolutionConfigError
+            )
+        if budget_steps is None and budget_seconds is None:
+            raise EvolutionConfigError("a training session needs budget_steps or budget_seconds")
         session = self.session
-        if session is None or session.mazes != mazes or session.budget_steps != budget_steps:
+        if (
+            session is None
+            or session.mazes != mazes
+            or session.budget_steps != budget_steps
+            or session.budget_seconds != budget_seconds
+        ):
             self.algorithm.forget_champion()
-            session = self.session = Session(mazes, budget_steps)
+            session = self.session = Session(mazes, budget_steps, budget_seconds=budget_seconds)
         backend = self._evaluator(mazes)
         last_checkpoint: float | None = None
         while self._goes_on(session):
@@ -243,8 +260,10 @@ class EvolutionLearner:
     # -- the loop's own ---------------------------------------------------------------
 
     def _goes_on(self, session: Session) -> bool:
+        budget_seconds = getattr(session, "budget_seconds", None)
         return (
-            session.steps < session.budget_steps
+            (session.budget_steps is None or session.steps < session.budget_steps)
+            and (budget_seconds is None or session.seconds < budget_seconds)
             and not session.converged
             and not self.algorithm.stopped
         )

@@ -144,11 +144,21 @@ class SB3Learner:
     def train(
         self,
         mazes: Sequence[str],
-        budget_steps: int,
+        budget_steps: int | None,
         *,
+        budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
     ) -> TrainingOutcome:
-        """One session on ``mazes`` (continued if this learner was saved inside it)."""
+        """One session on ``mazes`` (continued if this learner was saved inside it).
+
+        The budget is env steps, spent in whole rollouts: a time budget
+        (``budget_seconds``) is refused, as ``TrainConfig`` has none.
+        """
+        if budget_steps is None or budget_seconds is not None:
+            raise RLConfigError(
+                f"an SB3 learner's session takes a budget of env steps, not {budget_steps!r}"
+                f" steps and {budget_seconds!r} seconds"
+            )
         mazes = [MazeSpec.from_string(str(m)).to_string() for m in mazes]
         budget_steps = int(budget_steps)
         session = self.session

@@ -15,11 +15,13 @@ its agent for evaluation, and to save itself. Both trainers implement it:
 the run's seed, the stage and the branch by :func:`branch_seed`, so branches
 never share draws and a run replays identically from its seed.
 
-**Training sessions.** ``train(mazes, budget_steps, checkpoint=...)`` is one
-session: the learner trains on ``mazes`` (as given: a curriculum passes the
-4 rotations of its mazes) until it has spent ``budget_steps`` environment
-steps in the session, or earlier once it has converged (every training
-episode optimal). A session is spent in the learner's own units (whole
+**Training sessions.** ``train(mazes, budget_steps, budget_seconds=...,
+checkpoint=...)`` is one session: the learner trains on ``mazes`` (as given:
+a curriculum passes the 4 rotations of its mazes) until it has spent
+``budget_steps`` environment steps in the session (``None``: no step limit)
+or ``budget_seconds`` seconds of training (``None``: no time limit; a
+learner that cannot keep time refuses it), or earlier once it has converged
+(every training episode optimal). A session is spent in the learner's own units (whole
 generations, whole rollouts), so it may end a little past its budget; the
 outcome says what it spent. During a session the learner calls
 ``checkpoint()`` at safe points (after a generation, at the start of a
@@ -61,11 +63,12 @@ class Learner(Protocol):
     def train(
         self,
         mazes: Sequence[str],
-        budget_steps: int,
+        budget_steps: int | None,
         *,
+        budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
     ) -> TrainingOutcome:
-        """Train on ``mazes`` for ``budget_steps`` env steps (less if it converges)."""
+        """Train on ``mazes`` for ``budget_steps`` env steps or ``budget_seconds`` seconds."""
         ...
 
     def branch(self, seed: int) -> Learner:

@@ -21,7 +21,7 @@ branches.
 
 from __future__ import annotations
 
-__all__ = ["CURRICULUM_REGIMES", "REGIMES", "branch_allowance"]
+__all__ = ["CURRICULUM_REGIMES", "REGIMES", "branch_allowance", "branch_seconds"]
 
 REGIMES = ("direct", "interpolation", "edhucat", "edens")
 #: The regimes played by the curriculum loop (stages of branches chosen by a curator).
@@ -44,3 +44,15 @@ def branch_allowance(budget: int, used: int, stage: int, stages: int, branches: 
     if stages_left < 1:
         raise ValueError(f"stage {stage} is not one of {stages} stages")
     return max(budget - used, 0) // (branches * stages_left)
+
+
+def branch_seconds(budget: float, spent: float, stage: int, stages: int, branches: int) -> float:
+    """Seconds each branch of ``stage`` may train: :func:`branch_allowance` for time.
+
+    ``spent`` is what the finished branches took (training, evaluation and
+    pictures), so the loop's own time is paid from the budget too.
+    """
+    stages_left = stages - stage
+    if stages_left < 1:
+        raise ValueError(f"stage {stage} is not one of {stages} stages")
+    return max(budget - spent, 0.0) / (branches * stages_left)

@@ -16,8 +16,12 @@ and :meth:`CurriculumRun.load_learner`, and a curator
 (:mod:`amaze.curriculum.curators`) makes the decisions. The interpolation
 regime is the same loop with the ``interpolation`` curator and one branch.
 
-**Budget.** ``budget_steps`` env steps in all, shared between stages and
-branches by :func:`~amaze.curriculum.regimes.branch_allowance` (the paper's
+**Budget.** ``budget_steps`` env steps in all (and/or ``budget_seconds``
+seconds, where the trainer's config has it, shared the same way by
+:func:`~amaze.curriculum.regimes.branch_seconds`: a run on a seconds budget
+depends on the machine's speed, so its replay is not identical), shared
+between stages and branches by
+:func:`~amaze.curriculum.regimes.branch_allowance` (the paper's
 ``budget / (K * S)`` per agent per stage, the steps a stage leaves unspent
 handed on to the next ones). Branches of a stage are copies of the selected
 agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_seed`).
@@ -78,7 +82,12 @@ from amaze.curriculum.curators import (
 )
 from amaze.curriculum.interpolation import MAX_STAGES
 from amaze.curriculum.learner import Learner, branch_seed
-from amaze.curriculum.regimes import CURRICULUM_REGIMES, REGIMES, branch_allowance
+from amaze.curriculum.regimes import (
+    CURRICULUM_REGIMES,
+    REGIMES,
+    branch_allowance,
+    branch_seconds,
+)
 from amaze.evaluation.policy import record_episode
 from amaze.evaluation.protocol import Evaluator
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
@@ -432,7 +441,7 @@ class CurriculumRun(Run):
         "stages/",
         "progress.csv",
     )
-    config: Any  # a CurriculumConfig subclass with an integer budget_steps
+    config: Any  # a CurriculumConfig subclass with budget_steps (and maybe budget_seconds)
 
     def __init__(self, out: Any, config: Any) -> None:
         super().__init__(out, config)
@@ -517,9 +526,10 @@ class CurriculumRun(Run):
             text = "".join(json.dumps(d.to_dict(), sort_keys=True) + "\n" for d in self.replayed)
             write_bytes(self.out / REPLAY_FILE, text.encode("utf-8"))
         self.records = []
+        budget_seconds = getattr(c, "budget_seconds", None)
         with tqdm(
-            total=c.budget_steps,
-            unit="steps",
+            total=c.budget_steps if c.budget_steps is not None else budget_seconds,
+            unit="steps" if c.budget_steps is not None else "s",
             unit_scale=True,
             disable=not progress_bar,
             desc=f"{c.regime} {c.curator} seed {c.seed}",
@@ -533,8 +543,15 @@ class CurriculumRun(Run):
                     parent = self._select(stage)
                     history = History(stage=stage, parent=parent, stages=tuple(self.records))
                     mazes = self._decide(stage, "generate", lambda h=history: self._generate(h))
-                used = self._steps()
-                allowance = branch_allowance(c.budget_steps, used, stage, c.stages, c.branches)
+                allowance: tuple[int | None, float | None] = (None, None)
+                if c.budget_steps is not None:
+                    used = self._steps()
+                    steps = branch_allowance(c.budget_steps, used, stage, c.stages, c.branches)
+                    allowance = (steps, None)
+                if budget_seconds is not None:
+                    spent = self._seconds()
+                    seconds = branch_seconds(budget_seconds, spent, stage, c.stages, c.branches)
+                    allowance = (allowance[0], seconds)
                 evaluator = Evaluator(c.robot, rotations(mazes), inputs=False)
                 candidates: list[Candidate] = []
                 for branch in range(len(mazes)):
@@ -542,7 +559,8 @@ class CurriculumRun(Run):
                         stage, branch, mazes, parent, allowance, evaluator, self._steps(candidates)
                     )
                     candidates.append(candidate)
-                    bar.update(min(self._steps(candidates), c.budget_steps) - bar.n)
+                    done = self._steps(candidates) if c.budget_steps else self._seconds(candidates)
+                    bar.update(min(done, bar.total) - bar.n)
                     bar.set_postfix(
                         stage=stage, branch=branch, success=f"{candidate.success_rate:.2f}"
                     )
@@ -555,6 +573,7 @@ class CurriculumRun(Run):
 
     def figures(self) -> dict[str, Any]:
         c = self.config
+        budget_seconds = getattr(c, "budget_seconds", None)
         assert self.final is not None
         stages = []
         for record in self.records:
@@ -580,8 +599,9 @@ class CurriculumRun(Run):
             "target": c.target,
             "replay_of": c.replay,
             "budget_steps": c.budget_steps,
+            "budget_seconds": budget_seconds,
             "env_steps": self._steps(),
-            "seconds": round(sum(k.seconds for r in self.records for k in r.candidates), 3),
+            "seconds": round(self._seconds(), 3),
             "final_lineage": list(self.final.lineage),
             "final_mazes": list(self.final.mazes),
             "curriculum": stages,
@@ -622,6 +642,11 @@ class CurriculumRun(Run):
     def _generate(self, history: History) -> list[str]:
         assert self.curator is not None
         return self.curator.generate(self.config.branches, history)
+
+    def _seconds(self, current: Sequence[Candidate] = ()) -> float:
+        """Seconds of every finished branch (and of ``current``, the stage in progress)."""
+        done = sum(k.seconds for record in self.records for k in record.candidates)
+        return done + sum(k.seconds for k in current)
 
     def _select(self, stage: int) -> Candidate:
         """The select decision made before ``stage`` (``stages``: the final one)."""
@@ -716,7 +741,7 @@ class CurriculumRun(Run):
         branch: int,
         mazes: Sequence[str],
         parent: Candidate | None,
-        allowance: int,
+        allowance: tuple[int | None, float | None],
         evaluator: Evaluator,
         steps_before: int,
     ) -> Candidate:
@@ -742,7 +767,10 @@ class CurriculumRun(Run):
             learner = parent_learner.branch(branch_seed(c.seed, stage, branch))
         training = time.perf_counter()
         outcome = learner.train(
-            rotations(mazes[branch]), allowance, checkpoint=lambda: learner.save(checkpoint)
+            rotations(mazes[branch]),
+            allowance[0],
+            budget_seconds=allowance[1],
+            checkpoint=lambda: learner.save(checkpoint),
         )
         training = time.perf_counter() - training  # counted in outcome.seconds already
         learner.save(folder / "agent")
@@ -765,7 +793,8 @@ class CurriculumRun(Run):
             others=tuple(r for i, r in enumerate(results) if i != branch),
             lineage=lineage,
             env_steps=outcome.env_steps,
-            seconds=outcome.seconds + (time.perf_counter() - started - training),
+            # rounded as result.json keeps it, so a resumed run shares time alike
+            seconds=round(outcome.seconds + (time.perf_counter() - started - training), 3),
             converged=outcome.converged,
             lineage_steps=parent_steps + outcome.env_steps,
             pictures=(picture,),

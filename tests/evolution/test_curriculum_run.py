@@ -150,7 +150,6 @@ def test_bad_algorithm_options_fail_before_anything_is_written(
 @pytest.mark.parametrize(
     ("overrides", "bad"),
     [
-        ({"budget_seconds": 60.0}, "budget_seconds 60.0 applies to the direct regime"),
         ({"max_generations": 5}, "max_generations 5 applies to the direct regime"),
         ({"budget_steps": None}, "needs budget_steps"),
         ({"mazes": ["M1_5x5_C1"]}, "mazes 'M1_5x5_C1' apply to the direct regime"),
@@ -213,3 +212,16 @@ def test_a_person_at_the_terminal_curates_typing_mistakes_and_all(tmp_path: Path
     assert _decisions(out)[: len(made)] == made
     assert _decisions(out)[-1][:3] == (2, "select", 1)
     assert json.loads((out / "summary.json").read_text())["final_lineage"] == [0, 1]
+
+
+def test_a_curriculum_on_a_seconds_budget(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    args = [a for a in ARGS]
+    at = args.index("--budget-steps")
+    args[at : at + 2] = ["--budget-seconds", "2"]
+    assert main([*args, "--out", str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["budget_seconds"] == 2.0 and summary["budget_steps"] is None
+    assert json.loads((out / "config.json").read_text())["budget_steps"] is None
+    for result in out.glob("stages/stage-*/branch-*/result.json"):
+        assert json.loads(result.read_text())["env_steps"] > 0  # at least one generation

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -10,7 +11,7 @@ import pytest
 from amaze.curriculum import curators
 from amaze.curriculum.interpolation import curriculum
 from amaze.curriculum.learner import branch_seed
-from amaze.curriculum.regimes import branch_allowance
+from amaze.curriculum.regimes import branch_allowance, branch_seconds
 from amaze.errors import AmazeError
 from amaze.runs.curriculum import DECISIONS_FILE, DecisionLog, decision_sequence
 from tests.amaze.runs.toy_curriculum import ToyConfig, ToyLearner, ToyRun
@@ -126,7 +127,7 @@ def test_a_run_killed_mid_branch_resumes_to_the_same_curriculum(
     calls = {"n": 0}
     original = ToyLearner.train
 
-    def dying(self, mazes, budget_steps, *, checkpoint=None):
+    def dying(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None):
         def checkpoint_then_die() -> None:
             checkpoint()
             calls["n"] += 1
@@ -356,3 +357,28 @@ def test_branches_that_share_a_maze_keep_their_own_results_on_resume(
         candidate = run._read_candidate(folder)
         assert candidate.own[0].to_dict() == data["results"][branch]
         assert [r.to_dict() for r in candidate.others] == [data["results"][1 - branch]]
+
+
+@dataclass
+class TimedConfig(ToyConfig):
+    budget_steps: int | None = None
+    budget_seconds: float | None = 4.0
+
+
+class TimedRun(ToyRun):
+    config_class = TimedConfig
+
+
+def test_a_seconds_budget_is_shared_like_steps_from_what_branches_took(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    result = TimedRun.fresh({**CONFIG, "budget_steps": None, "budget_seconds": 4.0}, out)
+    assert result.summary["budget_seconds"] == 4.0
+    spent = 0.0
+    for stage in range(3):
+        folders = sorted(out.glob(f"stages/stage-{stage}/branch-*"))
+        expected = branch_seconds(4.0, spent, stage, 3, 2)
+        for folder in folders:
+            given = json.loads((folder / "agent/toy.json").read_text())["budget_seconds"]
+            assert given == pytest.approx(expected, abs=1e-12)
+            spent += json.loads((folder / "result.json").read_text())["seconds"]
+    assert result.summary["seconds"] == pytest.approx(spent, abs=1e-6)

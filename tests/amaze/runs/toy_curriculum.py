@@ -34,11 +34,13 @@ class ToyLearner:
     def __init__(self, seed: int, trained: int = 0, session: dict | None = None) -> None:
         self.seed, self.trained, self.session = seed, trained, session
 
-    def train(self, mazes, budget_steps, *, checkpoint=None):
+    def train(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None):
         if not (self.session and self.session["mazes"] == list(mazes)):
             self.session = {"mazes": list(mazes), "budget": budget_steps, "spent": 0}
-        while self.session["spent"] < budget_steps:
-            chunk = min(500, budget_steps - self.session["spent"])
+        self.budget_seconds = budget_seconds  # what the loop gave it, for the tests
+        limit = 500 if budget_steps is None else budget_steps  # a time budget: one chunk
+        while self.session["spent"] < limit:
+            chunk = min(500, limit - self.session["spent"])
             self.session["spent"] += chunk
             self.trained += chunk
             if checkpoint is not None:
@@ -54,6 +56,7 @@ class ToyLearner:
 
     def save(self, folder):
         data = {"seed": self.seed, "trained": self.trained, "session": self.session}
+        data["budget_seconds"] = getattr(self, "budget_seconds", None)
         write_json(Path(folder) / "toy.json", data)
 
 

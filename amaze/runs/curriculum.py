@@ -500,17 +500,19 @@ class CurriculumRun(Run):
             else None
         )
         if c.replay is not None:
-            source = Path(c.replay) / DECISIONS_FILE
-            self.replayed = DecisionLog(source).read(c.stages, c.branches, c.error)
+            # The run's own copy once it has one (the replayed run may be gone since).
+            copy = DecisionLog(self.out / REPLAY_FILE)
+            if copy.path.exists():
+                self.replayed = copy.read(c.stages, c.branches, c.error, "replayed decisions")
+            else:
+                source = DecisionLog(Path(c.replay) / DECISIONS_FILE)
+                self.replayed = source.read(c.stages, c.branches, c.error)
 
     def restore(self) -> int | None:
         """Check the decisions, the replay's and every finished branch; count the branches."""
         c = self.config
         self.start()
         self.recorded = self.decisions.read(c.stages, c.branches, c.error)
-        replay_copy = DecisionLog(self.out / REPLAY_FILE)
-        if c.replay is not None and replay_copy.path.exists():
-            self.replayed = replay_copy.read(c.stages, c.branches, c.error, "replayed decisions")
         finished = 0
         for result in sorted(self.out.glob("stages/stage-*/branch-*/result.json")):
             self._read_candidate(result.parent)
@@ -538,7 +540,8 @@ class CurriculumRun(Run):
             parent: Candidate | None = None
             for stage in range(c.stages):
                 if stage == 0:
-                    mazes = self._decide(0, "generate", lambda: [self._context().trivial_maze()])
+                    trivial = [c.curator_context().trivial_maze()]
+                    mazes = self._decide(0, "generate", lambda t=trivial: t)
                 else:
                     parent = self._select(stage)
                     history = History(stage=stage, parent=parent, stages=tuple(self.records))
@@ -626,9 +629,6 @@ class CurriculumRun(Run):
         )
 
     # -- the loop's own ---------------------------------------------------------
-
-    def _context(self) -> CuratorContext:
-        return self.config.curator_context()
 
     def _title(self) -> str:
         c = self.config
@@ -758,7 +758,7 @@ class CurriculumRun(Run):
             return candidate
         started = time.perf_counter()
         checkpoint = folder / "checkpoint"
-        if (checkpoint).exists():
+        if checkpoint.exists():
             learner = self.load_learner(checkpoint)
         elif parent is None:
             learner = self.new_learner(branch_seed(c.seed, stage, branch))

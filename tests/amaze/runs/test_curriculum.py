@@ -382,3 +382,17 @@ def test_a_seconds_budget_is_shared_like_steps_from_what_branches_took(tmp_path:
             assert given == pytest.approx(expected, abs=1e-12)
             spent += json.loads((folder / "result.json").read_text())["seconds"]
     assert result.summary["seconds"] == pytest.approx(spent, abs=1e-6)
+
+
+def test_a_replay_resumes_from_its_own_copy_of_the_decisions(
+    tmp_path: Path, finished: Path
+) -> None:
+    import shutil
+
+    source = tmp_path / "source"
+    shutil.copytree(finished, source)
+    out = tmp_path / "replay"
+    ToyRun.replay(source, out)
+    (out / "summary.json").unlink()
+    shutil.rmtree(source)  # the replayed run is gone: its copy in the folder is enough
+    assert choices(ToyRun.resume(out).out) == choices(finished)

@@ -21,7 +21,7 @@ from amaze.curriculum.curators import StageRecord
 from amaze.maze.render import MIN_CELL_SIZE, load_font, render_maze
 from amaze.maze.spec import MazeSpec
 
-__all__ = ["render_curriculum", "save_curriculum_png"]
+__all__ = ["render_curriculum", "save_curriculum_png", "save_curriculum_progress"]
 
 #: Side of a maze thumbnail, in pixels (about).
 THUMBNAIL = 112
@@ -110,5 +110,67 @@ def save_curriculum_png(
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp.png")
     render_curriculum(records, title).save(tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def save_curriculum_progress(
+    records: Sequence[StageRecord], target: str, path: str | os.PathLike, title: str = ""
+) -> Path:
+    """``progress.png``: how the selected agents fared and how hard their mazes were.
+
+    Top: per stage, at the env steps spent by its end, the selected branch's
+    success on its own maze, on every maze of the stage and (when the curator
+    has validation mazes) on the validation mazes. Bottom: the
+    :func:`~amaze.curriculum.genome.difficulty` of every branch's maze, the
+    selected one's joined by a line, and the target's as a dashed line.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from amaze.curriculum.genome import difficulty
+
+    steps, spent = [], 0
+    for record in records:
+        spent += sum(c.env_steps for c in record.candidates)
+        steps.append(spent)
+    chosen = [
+        (s, r.candidates[r.selected])
+        for s, r in zip(steps, records, strict=True)
+        if r.selected is not None
+    ]
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), dpi=110, sharex=True)
+    series = [
+        ("own maze", lambda c: c.success_rate),
+        ("stage's mazes", lambda c: c.overall_success_rate),
+    ]
+    if any(c.validation for _, c in chosen):
+        series.append(("validation mazes", lambda c: c.validation_success_rate))
+    for label, value in series:
+        top.plot([s for s, _ in chosen], [value(c) for _, c in chosen], "o-", label=label)
+    top.set_ylabel("success of the selected branch")
+    top.set_ylim(-0.05, 1.05)
+    top.legend(loc="lower right")
+    top.grid(alpha=0.3)
+    for s, record in zip(steps, records, strict=True):
+        hardness = [difficulty(c.mazes[0]) for c in record.candidates]
+        bottom.plot([s] * len(hardness), hardness, ".", color="grey")
+    selected = [difficulty(c.mazes[0]) for _, c in chosen]
+    bottom.plot([s for s, _ in chosen], selected, "o-", label="selected branch's maze")
+    bottom.axhline(difficulty(target), linestyle="--", color="black", label="target")
+    bottom.set_ylabel("maze difficulty")
+    bottom.set_xlabel("environment steps (end of stage)")
+    bottom.legend(loc="lower right")
+    bottom.grid(alpha=0.3)
+    if title:
+        top.set_title(title)
+    figure.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    figure.savefig(tmp)
+    plt.close(figure)
     os.replace(tmp, path)
     return path

@@ -44,7 +44,9 @@ agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_
   ``checkpoint/`` (the learner mid-session);
 * ``progress.csv``: one row per finished branch;
 * ``curriculum.png``: the curriculum at a glance (stage x branch thumbnails
-  with success and R̄, the selected branches and the lineage).
+  with success and R̄, the selected branches and the lineage);
+* ``progress.png``: the selected branches' success (own maze, the stage's
+  mazes, validation mazes) and their mazes' difficulty against env steps.
 
 **Resume and replay.** The folder is the loop's state: a resumed run reads
 the decisions already made (a human is never asked twice), skips the
@@ -438,6 +440,7 @@ class CurriculumRun(Run):
         "summary.json",
         "decisions.jsonl",
         "curriculum.png",
+        "progress.png",
         "stages/",
         "progress.csv",
     )
@@ -616,9 +619,12 @@ class CurriculumRun(Run):
         return [(f"target-rotation-{index}", maze) for index, maze in enumerate(mazes)]
 
     def extra_outputs(self) -> None:
-        from amaze.curriculum.picture import save_curriculum_png
+        from amaze.curriculum.picture import save_curriculum_png, save_curriculum_progress
 
         save_curriculum_png(self.records, self.out / "curriculum.png", title=self._title())
+        save_curriculum_progress(
+            self.records, self.config.target, self.out / "progress.png", title=self._title()
+        )
 
     @classmethod
     def headline(cls, summary: Mapping[str, Any]) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -44,3 +45,20 @@ def test_large_mazes_shrink_to_thumbnails_of_the_same_size() -> None:
     small = render_curriculum([StageRecord(0, mazes[:1], stage.candidates[:1], 0)])
     large = render_curriculum([stage])
     assert large.height == small.height  # one row, thumbnails no taller than small ones
+
+
+def test_the_progress_plot_renders_with_and_without_validation(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from amaze.curriculum.picture import save_curriculum_progress
+
+    path = save_curriculum_progress(records(), "M5_12x12_C1", tmp_path / "a" / "progress.png")
+    plain = Image.open(path)
+    assert plain.size[0] > 400 and plain.size[1] > 400
+    validation = (MazeResults("M9_12x12_C1", (True, True, False, False), (0.1,) * 4, (9,) * 4),)
+    timed = [
+        replace(r, candidates=tuple(replace(c, validation=validation) for c in r.candidates))
+        for r in records()
+    ]
+    other = save_curriculum_progress(timed, "M5_12x12_C1", tmp_path / "b.png", title="edens")
+    assert other.read_bytes() != path.read_bytes()  # the validation series is drawn

@@ -113,6 +113,8 @@ DECISIONS_FILE = "decisions.jsonl"
 REPLAY_FILE = "replay.jsonl"
 #: Most branches per stage.
 MAX_BRANCHES = 64
+#: About the side, in pixels, of a branch's trajectory picture.
+PICTURE_SIDE = 320
 #: The default numbers of stages and branches (the paper's S and K).
 DEFAULT_STAGES = 10
 DEFAULT_BRANCHES = {"edhucat": 3, "interpolation": 1, "edens": 3}
@@ -608,6 +610,7 @@ class CurriculumRun(Run):
             "budget_seconds": budget_seconds,
             "env_steps": self._steps(),
             "seconds": round(self._seconds(), 3),
+            "time": self._time_spent(),
             "final_lineage": list(self.final.lineage),
             "final_mazes": list(self.final.mazes),
             "curriculum": stages,
@@ -653,6 +656,17 @@ class CurriculumRun(Run):
         """Seconds of every finished branch (and of ``current``, the stage in progress)."""
         done = sum(k.seconds for record in self.records for k in record.candidates)
         return done + sum(k.seconds for k in current)
+
+    def _time_spent(self) -> dict[str, float]:
+        """Seconds of every branch by part (training, evaluation...), from ``result.json``."""
+        totals: dict[str, float] = {}
+        for record in self.records:
+            for candidate in record.candidates:
+                path = self._branch_folder(candidate) / "result.json"
+                parts = json.loads(path.read_text(encoding="utf-8")).get("time", {})
+                for part, seconds in parts.items():
+                    totals[part] = round(totals.get(part, 0.0) + float(seconds), 3)
+        return totals
 
     def _select(self, stage: int) -> Candidate:
         """The select decision made before ``stage`` (``stages``: the final one)."""
@@ -762,7 +776,7 @@ class CurriculumRun(Run):
                     " than the decisions say"
                 )
             return candidate
-        started = time.perf_counter()
+        clock = [time.perf_counter()]
         checkpoint = folder / "checkpoint"
         if checkpoint.exists():
             learner = self.load_learner(checkpoint)
@@ -771,23 +785,35 @@ class CurriculumRun(Run):
         else:
             parent_learner = self.load_learner(self._branch_folder(parent) / "agent")
             learner = parent_learner.branch(branch_seed(c.seed, stage, branch))
-        training = time.perf_counter()
+        clock.append(time.perf_counter())
         outcome = learner.train(
             rotations(mazes[branch]),
             allowance[0],
             budget_seconds=allowance[1],
             checkpoint=lambda: learner.save(checkpoint),
         )
-        training = time.perf_counter() - training  # counted in outcome.seconds already
+        clock.append(time.perf_counter())
         learner.save(folder / "agent")
         agent = learner.agent()
+        clock.append(time.perf_counter())
         results = _maze_results(evaluator, agent, mazes)
         validation = []
         if self.validation is not None:
             validation = _maze_results(self.validation[0], agent, self.validation[1])
+        clock.append(time.perf_counter())
         _, trajectory = record_episode(mazes[branch], c.robot, agent)
         picture = folder / "trajectory.png"
-        save_trajectory_png(mazes[branch], trajectory, picture, robot=c.robot, caption=True)
+        spec = MazeSpec.from_string(mazes[branch])
+        cell = max(8, PICTURE_SIDE // max(spec.width, spec.height))  # small, quick to draw
+        save_trajectory_png(spec, trajectory, picture, robot=c.robot, caption=True, cell_size=cell)
+        clock.append(time.perf_counter())
+        # Where the branch's time went (the learner's seconds cover every resumed part).
+        spent = {
+            "training": outcome.seconds,
+            "loading_and_saving": (clock[1] - clock[0]) + (clock[3] - clock[2]),
+            "evaluation": clock[4] - clock[3],
+            "picture": clock[5] - clock[4],
+        }
         lineage = (*parent.lineage, branch) if parent is not None else (branch,)
         parent_steps = parent.lineage_steps if parent is not None else 0
         own = results[branch]
@@ -800,13 +826,15 @@ class CurriculumRun(Run):
             lineage=lineage,
             env_steps=outcome.env_steps,
             # rounded as result.json keeps it, so a resumed run shares time alike
-            seconds=round(outcome.seconds + (time.perf_counter() - started - training), 3),
+            seconds=round(sum(spent.values()), 3),
             converged=outcome.converged,
             lineage_steps=parent_steps + outcome.env_steps,
             pictures=(picture,),
             validation=tuple(validation),
         )
-        write_json(folder / "result.json", _candidate_to_dict(candidate, results))
+        data = _candidate_to_dict(candidate, results)
+        data["time"] = {part: round(seconds, 3) for part, seconds in spent.items()}
+        write_json(folder / "result.json", data)
         finished = len(list(self.out.glob("stages/stage-*/branch-*/result.json")))
         self.progress.append(
             {

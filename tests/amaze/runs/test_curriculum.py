@@ -396,3 +396,17 @@ def test_a_replay_resumes_from_its_own_copy_of_the_decisions(
     (out / "summary.json").unlink()
     shutil.rmtree(source)  # the replayed run is gone: its copy in the folder is enough
     assert choices(ToyRun.resume(out).out) == choices(finished)
+
+
+def test_each_branch_says_where_its_time_went(finished: Path) -> None:
+    summary = json.loads((finished / "summary.json").read_text())
+    parts = ("training", "loading_and_saving", "evaluation", "picture")
+    assert set(summary["time"]) == set(parts)
+    total = 0.0
+    for branch in _branches(finished):
+        result = json.loads((branch / "result.json").read_text())
+        assert set(result["time"]) == set(parts)
+        assert sum(result["time"].values()) == pytest.approx(result["seconds"], abs=0.01)
+        total += result["seconds"]
+    assert sum(summary["time"].values()) == pytest.approx(total, abs=0.01)
+    assert summary["seconds"] == pytest.approx(total, abs=0.01)

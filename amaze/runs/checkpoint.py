@@ -29,6 +29,7 @@ file; nothing is executed.
 from __future__ import annotations
 
 import enum
+import hashlib
 import io
 import os
 import pickle
@@ -146,9 +147,21 @@ class _RestrictedUnpickler(pickle._Unpickler):  # type: ignore[name-defined]
     del _opcode
 
 
+#: The first line of a checkpoint; the second is the SHA-256 of the pickle that follows.
+MAGIC = b"amaze-checkpoint 1\n"
+
+
 def write_checkpoint(path: str | os.PathLike, state: Any) -> Path:
-    """Write ``state`` to ``path`` atomically (a pickle, read back by :func:`read_checkpoint`)."""
-    return write_bytes(path, pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
+    """Write ``state`` to ``path`` atomically: a pickle behind its SHA-256 digest.
+
+    The digest lets :func:`read_checkpoint` refuse a damaged file before it
+    is unpickled: a flipped byte in an array would otherwise load as a valid
+    state holding wrong numbers (a covariance matrix with a NaN) and fail
+    later, far from the file, or not at all.
+    """
+    data = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+    digest = hashlib.sha256(data).hexdigest().encode("ascii")
+    return write_bytes(path, MAGIC + digest + b"\n" + data)
 
 
 def read_checkpoint(
@@ -168,6 +181,11 @@ def read_checkpoint(
         raise error(f"checkpoint {where} cannot be read: {problem.strerror or problem}") from None
     if not data:
         raise error(f"checkpoint {where} is empty")
+    if data.startswith(MAGIC):
+        digest, _, data = data[len(MAGIC) :].partition(b"\n")
+        if hashlib.sha256(data).hexdigest().encode("ascii") != digest:
+            raise error(f"checkpoint {where} is damaged (its SHA-256 digest does not match)")
+    # else: a checkpoint written before the digest, a bare pickle
     try:
         state = _RestrictedUnpickler(data, allowed).load()
     except _Refused as refused:

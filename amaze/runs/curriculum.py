@@ -96,7 +96,7 @@ from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.maze import rotations
 from amaze.maze.spec import MazeSpec
 from amaze.runs.config import RunConfig, option
-from amaze.runs.folder import write_bytes, write_json
+from amaze.runs.folder import read_text, write_bytes, write_json
 from amaze.runs.lifecycle import Run
 from amaze.validation import check_integer
 
@@ -297,12 +297,7 @@ class DecisionLog:
         where = repr(str(self.path))
         if not (self.path.exists() or self.path.is_symlink()):
             return []
-        try:
-            text = self.path.read_bytes().decode("utf-8")
-        except IsADirectoryError:
-            raise error(f"{what} {where} is a directory") from None
-        except UnicodeDecodeError:
-            raise error(f"{what} {where} is not text") from None
+        text = read_text(self.path, error, what)
         expected = decision_sequence(stages)
         decisions: list[Decision] = []
         for number, line in enumerate(text.splitlines(), start=1):
@@ -436,6 +431,7 @@ class CurriculumRun(Run):
     """The curriculum loop of a trainer; subclasses supply the trainer's learner."""
 
     progress_fields = PROGRESS_FIELDS
+    progress_text_fields = ("converged", "maze")
     position_field = "branches"
     checkpoint_files = ()
     outputs: ClassVar[tuple[str, ...]] = (
@@ -835,7 +831,8 @@ class CurriculumRun(Run):
         data = _candidate_to_dict(candidate, results)
         data["time"] = {part: round(seconds, 3) for part, seconds in spent.items()}
         write_json(folder / "result.json", data)
-        finished = len(list(self.out.glob("stages/stage-*/branch-*/result.json")))
+        # Branches run in order: the earlier stages' and this stage's first ``branch``.
+        finished = sum(len(record.candidates) for record in self.records) + branch + 1
         self.progress.append(
             {
                 "branches": finished,

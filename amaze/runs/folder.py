@@ -22,7 +22,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ProgressLog", "write_bytes", "write_json"]
+__all__ = ["ProgressLog", "read_text", "write_bytes", "write_json"]
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
@@ -44,12 +44,26 @@ def write_json(path: str | os.PathLike, data: Any) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
+def read_text(path: Path, error: type[ValueError], what: str) -> str:
+    """The UTF-8 text of the file ``path``; ``error`` names it (as ``what``) otherwise."""
+    try:
+        return path.read_bytes().decode("utf-8")
+    except IsADirectoryError:
+        raise error(f"{what} {str(path)!r} is a directory") from None
+    except UnicodeDecodeError:
+        raise error(f"{what} {str(path)!r} is not text") from None
+
+
 class ProgressLog:
     """``progress.csv``: one row per evaluation (or generation), with fixed columns."""
 
-    def __init__(self, path: str | os.PathLike, fields: Sequence[str]) -> None:
+    def __init__(
+        self, path: str | os.PathLike, fields: Sequence[str], text_fields: Sequence[str] = ()
+    ) -> None:
         self.path = Path(path)
         self.fields = tuple(fields)
+        #: The columns that hold text; every other one holds numbers.
+        self.text_fields = frozenset(text_fields)
 
     def append(self, row: Mapping[str, Any]) -> None:
         """Add one row (the header first, if the file is new)."""
@@ -71,19 +85,15 @@ class ProgressLog:
         """Every row, after checking the file is this log; raise ``error`` naming it otherwise.
 
         The header must be :attr:`fields`, every row must have one value per
-        column and an integer ``position_field`` that never decreases. A last
+        column, a number in every column but the text ones, and an integer
+        ``position_field`` that never decreases. A last
         line without its newline is a row torn by a kill during the write: it
         is left out (it was written after the last checkpoint).
         """
         where = repr(str(self.path))
         if not self.path.exists():
             return []
-        try:
-            text = self.path.read_bytes().decode("utf-8")
-        except IsADirectoryError:
-            raise error(f"progress log {where} is a directory") from None
-        except UnicodeDecodeError:
-            raise error(f"progress log {where} is not text") from None
+        text = read_text(self.path, error, "progress log")
         lines = text.splitlines(keepends=True)
         if lines and not lines[-1].endswith("\n"):
             lines.pop()
@@ -107,6 +117,14 @@ class ProgressLog:
                     f"progress log {where}, line {number}: {position_field} {row[position_field]!r}"
                     " is not an integer"
                 ) from None
+            for name, value in row.items():
+                if name not in self.text_fields and name != position_field:
+                    try:
+                        float(value)
+                    except ValueError:
+                        raise error(
+                            f"progress log {where}, line {number}: {name} {value!r} is not a number"
+                        ) from None
             if last is not None and position < last:
                 raise error(f"progress log {where}, line {number}: {position_field} goes back")
             rows.append(row)

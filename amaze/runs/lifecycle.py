@@ -82,6 +82,8 @@ class Run(ABC):
     config_class: ClassVar[type[RunConfig]]
     #: The columns of ``progress.csv``.
     progress_fields: ClassVar[tuple[str, ...]]
+    #: The columns of ``progress.csv`` that hold text (the others hold numbers).
+    progress_text_fields: ClassVar[tuple[str, ...]] = ()
     #: The ``progress.csv`` column that says how far the run was when a row was written.
     position_field: ClassVar[str]
     #: The files of a checkpoint, in ``checkpoints/``.
@@ -92,7 +94,9 @@ class Run(ABC):
     def __init__(self, out: str | os.PathLike, config: RunConfig) -> None:
         self.out = Path(out)
         self.config = config
-        self.progress = ProgressLog(self.out / "progress.csv", self.progress_fields)
+        self.progress = ProgressLog(
+            self.out / "progress.csv", self.progress_fields, self.progress_text_fields
+        )
         self.checkpoints = self.out / "checkpoints"
 
     # -- the trainer's part ---------------------------------------------------

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
 import signal
 import subprocess
 import sys
@@ -14,9 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from amaze.runs.checkpoint import read_checkpoint
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, read_agent
 from evolution.cli import main
+from evolution.config import CHECKPOINT_ALLOWLIST
 from evolution.run import EvolveConfig, evolve, resume
 
 SMALL_MAZES = ["M0_5x5_U", "M1_5x5_C1"]
@@ -52,7 +53,9 @@ def test_run_folder(tmp_path: Path, algo: str) -> None:
     result = evolve(_config(algo), out)
     for name in ("config.json", "progress.csv", "champion.npz", "summary.json", "fitness.png"):
         assert (out / name).stat().st_size > 0, name
-    state = pickle.loads((out / "checkpoints" / "state.pkl").read_bytes())
+    state = read_checkpoint(
+        out / "checkpoints" / "state.pkl", CHECKPOINT_ALLOWLIST, EvolutionConfigError, object
+    )
     assert state.generation == 4 and state.steps == result.env_steps  # the last one is saved
     assert len(list((out / "trajectories").glob("*.png"))) == 4
     rows = _rows(out)

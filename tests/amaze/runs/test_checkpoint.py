@@ -157,3 +157,29 @@ def test_a_cma_option_string_is_refused_on_restore(tmp_path: Path) -> None:
     with pytest.raises(EvolutionConfigError, match="'tolfun' holds the string"):
         read_checkpoint(path, CHECKPOINT_ALLOWLIST, EvolutionConfigError, CMAESAlgorithm)
     assert not marker.exists()
+
+
+def test_a_flipped_byte_in_the_numbers_is_refused_before_unpickling(tmp_path: Path) -> None:
+    path = write_checkpoint(tmp_path / "state.pkl", np.arange(64, dtype=np.float64))
+    data = bytearray(path.read_bytes())
+    data[-20] ^= 0x40  # inside the array: the pickle alone would still load
+    path.write_bytes(bytes(data))
+    with pytest.raises(AmazeError, match=r"state\.pkl' is damaged \(its SHA-256 digest"):
+        read_checkpoint(path, ALLOWED, AmazeError, np.ndarray)
+
+
+def test_a_bare_pickle_of_an_older_version_still_reads(tmp_path: Path) -> None:
+    path = tmp_path / "old.pkl"
+    path.write_bytes(pickle.dumps(np.arange(3)))
+    assert read_checkpoint(path, ALLOWED, AmazeError, np.ndarray).tolist() == [0, 1, 2]
+
+
+def test_a_progress_log_with_a_damaged_number_is_refused(tmp_path: Path) -> None:
+    from amaze.runs.folder import ProgressLog
+
+    log = ProgressLog(tmp_path / "progress.csv", ("step", "best", "maze"), text_fields=("maze",))
+    log.append({"step": 1, "best": -4.5, "maze": "M1_5x5_U"})
+    assert len(log.checked_rows("step", AmazeError)) == 1
+    log.path.write_text(log.path.read_text().replace("-4.5", "-4.]5"))
+    with pytest.raises(AmazeError, match=r"line 2: best '-4\.\]5' is not a number"):
+        log.checked_rows("step", AmazeError)

@@ -87,6 +87,10 @@ class SearchAlgorithm(Protocol):
         """The champion's arrays and its architecture metadata, for an agent file."""
         ...
 
+    def candidate_arrays(self, candidate: Any) -> tuple[dict[str, np.ndarray], dict]:
+        """Any candidate of ``ask()`` as :meth:`champion_arrays` gives the champion."""
+        ...
+
     def stats(self) -> dict[str, float]:
         """The last generation's statistics (best, mean...), ``{}`` before the first tell."""
         ...

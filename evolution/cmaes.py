@@ -400,7 +400,11 @@ class CMAESAlgorithm:
         """The champion for an agent file: ``({"params": float64}, {"type": "mlp", ...spec})``."""
         if self._champion is None:
             raise RuntimeError("no champion yet: tell() the fitness of a generation first")
-        params = np.array(self._champion[0], dtype=np.float64)
+        return self.candidate_arrays(self._champion[0])
+
+    def candidate_arrays(self, candidate: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
+        """A candidate parameter vector for an agent file (as :meth:`champion_arrays`)."""
+        params = np.array(candidate, dtype=np.float64)
         return {"params": params}, {"type": "mlp", **self.spec.to_dict()}
 
     def ask(self) -> list[np.ndarray]:

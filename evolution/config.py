@@ -13,6 +13,8 @@ import argparse
 from dataclasses import dataclass
 from typing import Any
 
+from amaze.curriculum.coevolution import CoevolutionError, MazePopulationConfig
+from amaze.curriculum.regimes import REGIMES
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.runs.checkpoint import Allowlist
 from amaze.runs.config import option
@@ -41,8 +43,10 @@ CHECKPOINT_ALLOWLIST = Allowlist.of(
 class EvolveConfig(CurriculumConfig):
     """Everything that defines an evolution run (stored as ``config.json``).
 
-    In the direct regime, ``budget_steps``, ``budget_seconds`` and
-    ``max_generations`` may each be ``None`` (no limit), not all three. In a
+    In the direct and coevolution regimes, ``budget_steps``, ``budget_seconds``
+    and ``max_generations`` may each be ``None`` (no limit), not all three;
+    the coevolution regime (:mod:`evolution.coevolution`) evolves its own mazes
+    toward ``target``'s family, with the ``coevolution`` options. In a
     curriculum regime (``interpolation``, ``edhucat``, ``edens``;
     :mod:`evolution.curriculum`) the budget is ``budget_steps`` and/or
     ``budget_seconds``, shared between stages and branches, and the mazes are
@@ -52,6 +56,7 @@ class EvolveConfig(CurriculumConfig):
 
     error = EvolutionConfigError
     options_field = "algorithm"
+    supported_regimes = REGIMES  # coevolution included (evolution.coevolution)
 
     algo: str = option("cmaes", "search algorithm", choices=tuple(ALGORITHMS))
     mazes: list[str] = option(
@@ -71,6 +76,11 @@ class EvolveConfig(CurriculumConfig):
     algorithm: dict[str, Any] = option(
         default_factory=dict,
         help="the algorithm's options (CMAESConfig or NeatConfig fields)",
+        command_line=False,
+    )
+    coevolution: dict[str, Any] = option(
+        default_factory=dict,
+        help="the maze population's options in the coevolution regime (MazePopulationConfig)",
         command_line=False,
     )
 
@@ -100,6 +110,7 @@ class EvolveConfig(CurriculumConfig):
             )
         if self.is_curriculum:
             self._check_curriculum()
+        self._check_coevolution()
         if (self.budget_steps, self.budget_seconds, self.max_generations) == (None, None, None):
             raise EvolutionConfigError("a run needs a budget: budget_steps or budget_seconds")
         self.checkpoint_seconds = check_number(
@@ -123,6 +134,27 @@ class EvolveConfig(CurriculumConfig):
             raise EvolutionConfigError(
                 f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"
                 f" {regime} regime makes its own mazes, leading to target (--target)"
+            )
+
+    def _check_coevolution(self) -> None:
+        """The coevolution regime's options are a valid maze population config; mazes its own."""
+        if not isinstance(self.coevolution, dict):
+            raise EvolutionConfigError(f"coevolution {self.coevolution!r} is not a JSON object")
+        if self.regime != "coevolution":
+            if self.coevolution:
+                raise EvolutionConfigError(
+                    f"coevolution options {self.coevolution!r} are for the coevolution regime,"
+                    f" not {self.regime}"
+                )
+            return
+        try:
+            MazePopulationConfig.from_dict(self.coevolution)
+        except CoevolutionError as problem:
+            raise EvolutionConfigError(str(problem)) from None
+        if self.mazes != [PAPER_TRAINING_MAZE]:
+            raise EvolutionConfigError(
+                f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"
+                " coevolution regime evolves its own, leading to target (--target)"
             )
 
     @classmethod

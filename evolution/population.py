@@ -160,7 +160,8 @@ class PopulationEvaluator:
     ``mazes`` (mazes, specs or maze strings) are played as given, once each
     (``rotations=True`` expands each to its 4 rotations first, see
     :func:`amaze.maze.rotations`). ``fitness`` is one of :data:`FITNESS`. Mazes
-    are generated and compiled once; one engine is kept per population size.
+    are generated and compiled once; one engine is kept per population size
+    (the first, for ``n_policies`` individuals, is built at once).
     """
 
     def __init__(
@@ -171,6 +172,7 @@ class PopulationEvaluator:
         fitness: str = "paper_reward",
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         rotations: bool = False,
+        n_policies: int = 1,
     ) -> None:
         if fitness not in FITNESS:
             raise EvolutionConfigError(f"fitness {fitness!r} is not one of {', '.join(FITNESS)}")
@@ -185,7 +187,8 @@ class PopulationEvaluator:
         self.deadline_factor = float(deadline_factor)
         self.maze_strings = [m.to_string() for m in self.mazes]
         self._engines: dict[int, BatchEngine] = {}
-        self.engine(1)  # compiles the maze tables now, and checks the deadline factor
+        # compiles the maze tables now (for populations of n_policies), checks the deadline factor
+        self.engine(check_integer("n_policies", n_policies, minimum=1, error=EvolutionConfigError))
 
     @property
     def n_episodes(self) -> int:

@@ -80,6 +80,7 @@ from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
 from evolution.config import CHECKPOINT_ALLOWLIST, EvolveConfig
+from evolution.generations import GenerationLoop
 from evolution.population import EvaluationBackend, PopulationEvaluator
 
 __all__ = ["EvolutionRun", "EvolveConfig", "evolve", "resume"]
@@ -101,21 +102,12 @@ class _State:
     version: int = CHECKPOINT_VERSION
 
 
-class EvolutionRun(Run):
+class EvolutionRun(GenerationLoop):
     """The evolution trainer: generations of ask, evaluate, tell until a budget is spent."""
 
-    config_class = EvolveConfig
     progress_fields = PROGRESS_FIELDS
-    position_field = "generation"
-    checkpoint_files = ("state.pkl",)
     outputs = ("champion.npz", "summary.json", "progress.csv", "fitness.png")
-    config: EvolveConfig
-
-    def __init__(self, out: str | os.PathLike, config: EvolveConfig) -> None:
-        super().__init__(out, config)
-        self.checkpoint = self.checkpoints / self.checkpoint_files[0]
-        self.state: _State  # set by start() or restore()
-        self.champion_fitness = -np.inf
+    state: _State
 
     @cached_property
     def backend(self) -> EvaluationBackend:
@@ -128,11 +120,16 @@ class EvolutionRun(Run):
     @classmethod
     def run_class_for(cls, config: RunConfig) -> type[Run]:
         """This class for the direct regime, :class:`~evolution.curriculum.EvolutionCurriculumRun`
-        for the curriculum ones."""
+        for the curriculum ones, :class:`~evolution.coevolution.EvolutionCoevolutionRun`
+        for coevolution."""
         if isinstance(config, EvolveConfig) and config.is_curriculum:
             from evolution.curriculum import EvolutionCurriculumRun
 
             return EvolutionCurriculumRun
+        if isinstance(config, EvolveConfig) and config.regime == "coevolution":
+            from evolution.coevolution import EvolutionCoevolutionRun
+
+            return EvolutionCoevolutionRun
         return cls
 
     def start(self) -> None:
@@ -162,51 +159,6 @@ class EvolutionRun(Run):
         if champion is not None:
             self.champion_fitness = float(champion[1])
         return state.generation
-
-    def train(self, progress_bar: bool) -> None:
-        """Generations until a budget is spent, with a progress bar (ETA from the budget)."""
-        from tqdm import tqdm
-
-        c = self.config
-        if self.state.generation and not (self.out / "champion.npz").exists():
-            self.save_champion()  # a champion lost after the checkpoint is written again
-        if c.budget_steps is not None:
-            total, unit = c.budget_steps, "steps"
-        elif c.budget_seconds is not None:
-            total, unit = c.budget_seconds, "s"
-        else:
-            total, unit = c.max_generations, "gen"
-        with tqdm(
-            total=total,
-            initial=self._done(),
-            unit=unit,
-            unit_scale=True,
-            disable=not progress_bar,
-            desc=f"{c.algo} seed {c.seed}",
-            dynamic_ncols=True,
-        ) as bar:
-            last_checkpoint: float | None = None
-            while self.budget_left():
-                row = self.generation()
-                logging_started = time.perf_counter()
-                self.progress.append(row)
-                due = last_checkpoint is None or (
-                    self.state.seconds - last_checkpoint >= c.checkpoint_seconds
-                )
-                if due or not self.budget_left():
-                    self.save_checkpoint()
-                    last_checkpoint = self.state.seconds
-                self.state.seconds += time.perf_counter() - logging_started
-                rate = self.state.steps / max(self.state.eval_seconds, 1e-9)
-                bar.set_postfix(
-                    gen=row["generation"],
-                    best=f"{row['best']:.3f}",
-                    mean=f"{row['mean']:.3f}",
-                    champion=f"{row['champion']:.3f}",
-                    steps_s=f"{rate / 1e6:.2f}M",
-                    refresh=False,
-                )
-                bar.update(self._done() - bar.n)
 
     def final_agent(self) -> Any:
         if not (self.out / "champion.npz").exists():
@@ -248,16 +200,6 @@ class EvolutionRun(Run):
         )
 
     # -- evolution's own ----------------------------------------------------------
-
-    def budget_left(self) -> bool:
-        c, s = self.config, self.state
-        if c.budget_steps is not None and s.steps >= c.budget_steps:
-            return False
-        if c.budget_seconds is not None and s.seconds >= c.budget_seconds:
-            return False
-        if c.max_generations is not None and s.generation >= c.max_generations:
-            return False
-        return not s.algorithm.stopped
 
     def generation(self) -> dict[str, Any]:
         """Evaluate and breed one generation; return its progress row."""
@@ -304,14 +246,6 @@ class EvolutionRun(Run):
 
     def save_checkpoint(self) -> None:
         write_checkpoint(self.checkpoint, self.state)
-
-    def _done(self) -> float:
-        """How much of the budget the progress bar counts is spent (steps, else seconds)."""
-        if self.config.budget_steps is not None:
-            return min(self.state.steps, self.config.budget_steps)
-        if self.config.budget_seconds is not None:
-            return min(self.state.seconds, self.config.budget_seconds)
-        return self.state.generation
 
 
 def plot_progress(csv_path: Path, png_path: Path, config: EvolveConfig) -> None:

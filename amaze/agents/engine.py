@@ -63,10 +63,9 @@ from amaze.agents.rewards import (
     BACKWARD_PENALTY,
     COLLISION_PENALTY,
     DEFAULT_DEADLINE_FACTOR,
-    RewardScheme,
     check_deadline_factor,
-    paper_reward,
-    pretty_reward,
+    paper_rewards,
+    pretty_rewards,
 )
 from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
 from amaze.agents.tables import MazeTables, compile_mazes
@@ -794,29 +793,14 @@ class EndedEpisodes:
 
     def pretty_rewards(self) -> np.ndarray:
         """The reference's ``normalized_reward()`` (``pretty_reward``) of each episode."""
-        return np.array(
-            [
-                pretty_reward(float(r), RewardScheme(int(l_), self.dt, self.deadline_factor))
-                for r, l_ in zip(self.cumulative_reward, self.path_length, strict=True)
-            ],
-            dtype=np.float64,
+        return pretty_rewards(
+            self.cumulative_reward, self.path_length, self.dt, self.deadline_factor
         )
 
     def paper_rewards(self) -> np.ndarray:
         """The paper's normalised reward ``R̄`` of each episode (1 for an optimal run)."""
-        return np.array(
-            [
-                paper_reward(bool(s), int(n), int(c), int(b), int(l_), self.dt)
-                for s, n, c, b, l_ in zip(
-                    self.success,
-                    self.steps,
-                    self.collisions,
-                    self.backsteps,
-                    self.path_length,
-                    strict=True,
-                )
-            ],
-            dtype=np.float64,
+        return paper_rewards(
+            self.success, self.steps, self.collisions, self.backsteps, self.path_length, self.dt
         )
 
 

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from amaze.errors import OptionError
 from amaze.validation import check_integer, check_number
 
@@ -153,4 +155,33 @@ def paper_reward(
         - dt * steps / (path_length - 1)
         + PAPER_COLLISION * collisions
         + PAPER_BACKWARD * backsteps
+    )
+
+
+def pretty_rewards(
+    cumulative_reward: np.ndarray, path_length: np.ndarray, dt: float, deadline_factor: float
+) -> np.ndarray:
+    """:func:`pretty_reward` of many episodes at once (the same floats, element by element)."""
+    scheme = RewardScheme(1, dt, deadline_factor)  # checks dt and the deadline factor
+    length = np.asarray(path_length, dtype=np.float64)
+    worst = scheme.timestep + min(scheme.backward, scheme.collision)
+    r_min = scheme.deadline_factor * length * worst / scheme.dt
+    values = 2.0 * (np.asarray(cumulative_reward, dtype=np.float64) - r_min) / (length - r_min)
+    return np.array([round(v, 3) for v in (values - 1.0).tolist()], dtype=np.float64)
+
+
+def paper_rewards(
+    success: np.ndarray,
+    steps: np.ndarray,
+    collisions: np.ndarray,
+    backsteps: np.ndarray,
+    path_length: np.ndarray,
+    dt: float,
+) -> np.ndarray:
+    """:func:`paper_reward` of many episodes at once (the same floats, element by element)."""
+    return (
+        PAPER_FINISH * np.asarray(success, dtype=bool).astype(np.float64)
+        - dt * np.asarray(steps, dtype=np.float64) / (np.asarray(path_length, np.float64) - 1)
+        + PAPER_COLLISION * np.asarray(collisions, dtype=np.float64)
+        + PAPER_BACKWARD * np.asarray(backsteps, dtype=np.float64)
     )

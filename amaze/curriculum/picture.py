@@ -1,4 +1,4 @@
-"""``curriculum.png``: a whole curriculum at a glance.
+"""``curriculum.png``: a whole curriculum at a glance (and ``population.png``, a maze population).
 
 One row per stage, one column per branch: each branch's maze as a thumbnail,
 captioned with its success rate and R̄ on its own maze's 4 rotations, the
@@ -17,11 +17,18 @@ from pathlib import Path
 
 from PIL import Image, ImageDraw
 
+from amaze.curriculum.coevolution import MazePopulation
 from amaze.curriculum.curators import StageRecord
 from amaze.maze.render import MIN_CELL_SIZE, load_font, render_maze
 from amaze.maze.spec import MazeSpec
 
-__all__ = ["render_curriculum", "save_curriculum_png", "save_curriculum_progress"]
+__all__ = [
+    "render_curriculum",
+    "render_population",
+    "save_curriculum_png",
+    "save_curriculum_progress",
+    "save_population_png",
+]
 
 #: Side of a maze thumbnail, in pixels (about).
 THUMBNAIL = 112
@@ -172,5 +179,60 @@ def save_curriculum_progress(
     tmp = path.with_name(f".{path.name}.tmp.png")
     figure.savefig(tmp)
     plt.close(figure)
+    os.replace(tmp, path)
+    return path
+
+
+#: Most members drawn by :func:`save_population_png` (the best scores first).
+POPULATION_PICTURE_MAZES = 64
+#: Members per row of ``population.png``.
+POPULATION_COLUMNS = 8
+
+
+def render_population(population: MazePopulation, title: str = "") -> Image.Image:
+    """The members of a co-evolved maze population as captioned thumbnails, best score first.
+
+    Each thumbnail is captioned with the maze's record id, size and sign
+    kinds, its score, the agents' success rate on it (the last time it was
+    played) and its difficulty; at most :data:`POPULATION_PICTURE_MAZES` members.
+    """
+    members = sorted(population.member_records(), key=lambda r: (-r.score, r.id))
+    members = members[:POPULATION_PICTURE_MAZES]
+    columns = min(POPULATION_COLUMNS, max(len(members), 1))
+    rows = -(-len(members) // columns)
+    cell_w, cell_h = THUMBNAIL + PAD, THUMBNAIL + CAPTION + PAD
+    top = 30 if title else PAD
+    width, height = max(PAD + columns * cell_w, 420), top + max(rows * cell_h, 30)
+    image = Image.new("RGB", (width, height), "white")
+    draw = ImageDraw.Draw(image)
+    font, small = load_font(14), load_font(11)
+    if title:
+        draw.text((PAD, 8), title, fill=TEXT, font=font)
+    if not members:
+        draw.text((PAD, top), "no maze has met the minimal criterion yet", fill=TEXT, font=small)
+    for index, record in enumerate(members):
+        row, column = divmod(index, columns)
+        x0, y0 = PAD + column * cell_w, top + row * cell_h
+        spec = MazeSpec.from_string(record.maze)
+        side = max(spec.width, spec.height)
+        thumbnail = render_maze(record.maze, cell_size=max(MIN_CELL_SIZE, THUMBNAIL // side))
+        thumbnail.thumbnail((THUMBNAIL, THUMBNAIL))
+        image.paste(thumbnail, (x0 + (THUMBNAIL - thumbnail.width) // 2, y0))
+        y1 = y0 + THUMBNAIL
+        draw.text((x0, y1 + 4), f"#{record.id} {_fields(spec)}", fill=TEXT, font=small)
+        draw.text((x0, y1 + 17), f"score {record.score:.3f}", fill=TEXT, font=small)
+        caption = f"success {record.success:.2f} d {record.difficulty:.1f}"
+        draw.text((x0, y1 + 30), caption, fill=TEXT, font=small)
+    return image
+
+
+def save_population_png(
+    population: MazePopulation, path: str | os.PathLike, title: str = ""
+) -> Path:
+    """Write :func:`render_population` to ``path`` atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    render_population(population, title).save(tmp)
     os.replace(tmp, path)
     return path

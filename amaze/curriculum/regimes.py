@@ -13,7 +13,10 @@
   stage and a curator (:mod:`amaze.curriculum.curators`) that selects the
   agent that goes on and generates the next mazes;
 * **edens**: the same loop with the automated EDEnS-style curator
-  (:mod:`amaze.curriculum.edens`), the short form of ``edhucat --curator edens``.
+  (:mod:`amaze.curriculum.edens`), the short form of ``edhucat --curator edens``;
+* **coevolution**: no stages: a population of mazes co-evolves with the
+  agents (:mod:`amaze.curriculum.coevolution`), leading to the target's
+  family; evolution only (``evolution.coevolution``).
 
 :func:`branch_allowance` shares a curriculum's budget between its stages and
 branches.
@@ -23,7 +26,7 @@ from __future__ import annotations
 
 __all__ = ["CURRICULUM_REGIMES", "REGIMES", "branch_allowance", "branch_seconds"]
 
-REGIMES = ("direct", "interpolation", "edhucat", "edens")
+REGIMES = ("direct", "interpolation", "edhucat", "edens", "coevolution")
 #: The regimes played by the curriculum loop (stages of branches chosen by a curator).
 CURRICULUM_REGIMES = ("interpolation", "edhucat", "edens")
 

@@ -141,6 +141,10 @@ class CurriculumConfig(RunConfig):
     defaults, so ``config.json`` records what ran.
     """
 
+    #: The regimes this trainer runs: the direct and curriculum ones; a trainer
+    #: with a loop of its own for another regime (``coevolution``) adds it.
+    supported_regimes: ClassVar[tuple[str, ...]] = ("direct", *CURRICULUM_REGIMES)
+
     regime: str = option("direct", "training regime", choices=REGIMES)
     curator: str | None = option(
         None,
@@ -177,8 +181,15 @@ class CurriculumConfig(RunConfig):
     def validate(self) -> CurriculumConfig:
         """Check the regime fields (and the shared ones); fill a curriculum's defaults."""
         super().validate()
-        if self.regime not in REGIMES:
-            raise self.error(f"unknown regime {self.regime!r} (choose from {', '.join(REGIMES)})")
+        if self.regime not in self.supported_regimes:
+            known = "is not run by this trainer" if self.regime in REGIMES else "is unknown"
+            raise self.error(
+                f"regime {self.regime!r} {known} (choose from {', '.join(self.supported_regimes)})"
+            )
+        try:
+            self.target = MazeSpec.from_string(str(self.target)).to_string()
+        except ValueError as problem:
+            raise self.error(f"target {self.target!r}: {problem}") from None
         if not self.is_curriculum:
             for name in ("curator", "stages", "branches", "replay"):
                 if getattr(self, name) is not None:
@@ -209,10 +220,6 @@ class CurriculumConfig(RunConfig):
         self.branches = check_integer(
             "branches", self.branches, minimum=1, maximum=MAX_BRANCHES, error=self.error
         )
-        try:
-            self.target = MazeSpec.from_string(str(self.target)).to_string()
-        except ValueError as problem:
-            raise self.error(f"target {self.target!r}: {problem}") from None
         if not isinstance(self.curator_options, dict):
             raise self.error(f"curator_options {self.curator_options!r} is not a JSON object")
         if self.replay is not None and not isinstance(self.replay, str):

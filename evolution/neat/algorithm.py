@@ -147,6 +147,10 @@ class NeatAlgorithm:
             raise RuntimeError("no champion yet: tell() the fitness of a generation first")
         return genome_to_arrays(champion[0])
 
+    def candidate_arrays(self, genome: Genome) -> tuple[dict[str, np.ndarray], dict]:
+        """A genome compiled for an agent file (as :meth:`champion_arrays`)."""
+        return genome_to_arrays(genome)
+
     def ask(self) -> list[Genome]:
         """The genomes to evaluate this generation."""
         return list(self.population)

@@ -62,3 +62,31 @@ def test_the_progress_plot_renders_with_and_without_validation(tmp_path: Path) -
     ]
     other = save_curriculum_progress(timed, "M5_12x12_C1", tmp_path / "b.png", title="edens")
     assert other.read_bytes() != path.read_bytes()  # the validation series is drawn
+
+
+def test_a_maze_population_renders_best_score_first(tmp_path: Path) -> None:
+    from amaze.curriculum.coevolution import (
+        BatchMaze,
+        MazePopulation,
+        MazePopulationConfig,
+        MazeResult,
+    )
+    from amaze.curriculum.picture import THUMBNAIL, render_population, save_population_png
+
+    def population(sides: tuple[int, ...]) -> MazePopulation:
+        members = MazePopulation("M7_12x12_C1", MazePopulationConfig(capacity=9, batch=1), seed=1)
+        for side in sides:  # the 12x12 maze is half solved: the best score
+            success = (np.arange(32) < {5: 4, 9: 8, 12: 16}[side]).reshape(8, 4)
+            maze = f"M{side}_{side}x{side}_C1"
+            members.update([BatchMaze(maze, origin="family")], [MazeResult.of(success, success)])
+        return members
+
+    empty = render_population(population(()))
+    assert empty.height < THUMBNAIL  # a line saying so, no thumbnail
+    image = render_population(population((5, 9, 12)), title="three")
+    assert image.width > 3 * THUMBNAIL and THUMBNAIL < image.height < 2 * THUMBNAIL + 100
+    alone = render_population(population((12,)), title="three")
+    tile = (14, 30, 14 + THUMBNAIL, 30 + THUMBNAIL)
+    assert np.array_equal(np.asarray(image.crop(tile)), np.asarray(alone.crop(tile)))
+    path = save_population_png(population((5,)), tmp_path / "population.png")
+    assert path.read_bytes().startswith(b"\x89PNG")

@@ -1,0 +1,574 @@
+"""A co-evolved maze population: a level buffer that evolves beside the agents.
+
+The ``coevolution`` regime trains agents on a population of mazes that
+changes with them, instead of a fixed list (domain randomisation) or a
+curator's stages. Each generation of agents is played on a *batch* of mazes
+drawn from :class:`MazePopulation`; how the agents fared on each maze scores
+it, the scores decide which mazes stay and which are replayed. The mechanics
+borrow from three published systems, with their known bugs avoided:
+
+**Scores** (:data:`SCORES`; each from one generation's results on the maze,
+every agent of the population in its 4 rotations):
+
+* ``learnability`` (default): ``p (1 - p)``, ``p`` the fraction of those
+  episodes that reached the goal. It peaks at ``p = 1/2``: a maze that half
+  the population solves is the one that *ranks* the agents, which is all a
+  rank-based search (CMA-ES, NEAT's selection) learns from; mazes that every
+  agent or no agent solves teach nothing now and score 0.
+* ``regret``: a max-MC regret (Robust PLR): the highest R̄ any agent ever
+  reached on the maze minus the population's mean R̄ on it now.
+
+**Admission** (MCC's minimal criterion): a new maze joins the population
+only if at least one agent reached the goal in it (in one rotation at
+least) and its score is positive. A full population (``capacity``) admits it
+only in place of a member of the lowest score, and only when it scores
+higher (PLR's rule); among the members tied at that score, the one nearest
+to the newcomer in the metric space (below) goes (*crowding*, which keeps
+the population spread out). Replaced members are *retired*: ``mazes.csv``
+keeps every maze that was ever a member, with its birth and retirement.
+
+**Replay** (PLR, Jiang et al. 2021): once the population holds at least
+``batch`` mazes, each slot of a batch replays a member with probability
+``replay_probability`` (0.8), the members drawn without replacement from
+
+``P = (1 - staleness) P_S + staleness P_C``, with
+``P_S(i) = h(rank_i) / sum_j h(rank_j)``, ``h(r) = r ** (-1 / temperature)``
+
+(``rank_i`` is 1 for the best score; ties keep the members' order), the
+temperature a *power* (not a divisor, minimax#7), over a flat 1-D array of
+scores (dcd PR #12), and ``P_C(i) = (g - g_i) / sum_j (g - g_j)``, ``g`` the
+current generation and ``g_i`` the last one that played member ``i``
+(uniform when every member was just played). Replay never falls back to
+fresh mazes once the population is full enough (minimax#6).
+
+**New mazes** fill the other slots: with probability ``mutation_probability``
+a *mutant* (ACCEL): a member drawn from ``P``, changed by 1 to ``edits``
+operators of the maze genome (:class:`~amaze.curriculum.genome.MazeGenome`,
+sides within ``[min_size, max_size]``), which grows or shrinks it, adds or
+removes signs...; otherwise a fresh maze of the target's *family*: the
+target's fields with a new seed and a side drawn in ``[min_size,
+max_size]`` (domain randomisation). Fresh seeds never are the evaluation
+suite's (:func:`~amaze.curriculum.validation.reserved_seeds`) nor the
+validation mazes'.
+
+**Metric space**: each maze has a descriptor (side, intersections, lures,
+traps, Surprisingness, Deceptiveness, each divided by
+:data:`DESCRIPTOR_SCALES`), the Euclidean distance between descriptors
+measures diversity (crowding above, :meth:`MazePopulation.diversity`).
+
+Every draw comes from the population's own generator, seeded from the run's
+seed; the whole object pickles (the buffer, its scores and the generator
+state), so a run resumed from a checkpoint goes on bit-identically.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from amaze.curriculum.genome import SEED_RANGE, DifficultyProfile, MazeGenome
+from amaze.errors import AmazeError
+from amaze.maze.maze import Maze, as_mazes, rotations
+from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
+from amaze.validation import check_integer, check_number
+
+__all__ = [
+    "DESCRIPTOR_SCALES",
+    "SCORES",
+    "BatchMaze",
+    "CoevolutionError",
+    "MazePopulation",
+    "MazePopulationConfig",
+    "MazeRecord",
+    "MazeResult",
+    "rank_weights",
+    "replay_distribution",
+    "staleness_weights",
+]
+
+#: How a maze is scored from one generation's results (see the module docstring).
+SCORES = ("learnability", "regret")
+#: The descriptor's components and the scale each is divided by (about a 20x20 maze's value).
+DESCRIPTOR_SCALES: dict[str, float] = {
+    "side": 20.0,
+    "intersections": 10.0,
+    "lures": 20.0,
+    "traps": 5.0,
+    "surprisingness": 5.0,
+    "deceptiveness": 2.0,
+}
+#: Draws of a new maze before settling for one already in the batch or population.
+_REDRAWS = 8
+
+
+class CoevolutionError(AmazeError):
+    """A bad option of the maze population, or results that do not fit its batch."""
+
+
+@dataclass(frozen=True)
+class MazePopulationConfig:
+    """The maze population's options (the run config's ``coevolution`` object).
+
+    ``capacity`` mazes at most (PLR's buffer; 4000 there, where a level costs
+    one episode; here every maze of a batch is played by the whole agent
+    population, so a smaller buffer is replayed more often); ``batch`` mazes
+    per generation, each in its 4 rotations; ``replay_probability``,
+    ``staleness`` and ``temperature`` as in PLR; ``score`` one of
+    :data:`SCORES`; ``mutation_probability`` the share of new mazes that are
+    mutants rather than fresh family mazes; ``edits`` the most genome
+    operators per mutant; ``min_size``/``max_size`` bound the sides of new
+    mazes (``max_size`` default: the target's larger side). The run selects
+    its champion on ``validation`` validation mazes, playing the
+    ``validation_candidates`` best agents of every ``validation_every``-th
+    generation there (an agent's validation costs as much wall-clock time as
+    a few, so a few are played at once, and not every generation).
+    """
+
+    capacity: int = 64
+    batch: int = 8
+    replay_probability: float = 0.8
+    staleness: float = 0.3
+    temperature: float = 0.3
+    score: str = "learnability"
+    mutation_probability: float = 0.5
+    edits: int = 3
+    min_size: int = 5
+    max_size: int | None = None
+    validation: int = 16
+    validation_every: int = 4
+    validation_candidates: int = 4
+
+    def __post_init__(self) -> None:
+        def integer(name: str, low: int, high: int) -> None:
+            value = check_integer(
+                name, getattr(self, name), minimum=low, maximum=high, error=CoevolutionError
+            )
+            object.__setattr__(self, name, value)
+
+        def probability(name: str, strict: bool = False) -> None:
+            value = check_number(
+                name,
+                getattr(self, name),
+                minimum=0,
+                maximum=1,
+                strict_minimum=strict,
+                error=CoevolutionError,
+            )
+            object.__setattr__(self, name, value)
+
+        integer("capacity", 1, 100_000)
+        integer("batch", 1, 256)
+        integer("edits", 1, 32)
+        integer("validation", 1, 256)
+        integer("validation_every", 1, 1_000_000)
+        integer("validation_candidates", 1, 256)
+        integer("min_size", MIN_SIZE, MAX_SIZE)
+        if self.max_size is not None:
+            integer("max_size", self.min_size, MAX_SIZE)
+        for name in ("replay_probability", "staleness", "mutation_probability"):
+            probability(name)
+        probability("temperature", strict=True)
+        if self.score not in SCORES:
+            raise CoevolutionError(f"score {self.score!r} is not one of {', '.join(SCORES)}")
+        if self.capacity < self.batch:
+            raise CoevolutionError(
+                f"capacity {self.capacity} is smaller than batch {self.batch}: a full"
+                " population could never fill a batch of replayed mazes"
+            )
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any] | None) -> MazePopulationConfig:
+        """The options of a JSON object: missing keys take their defaults, unknown ones fail."""
+        data = dict(data or {})
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise CoevolutionError(
+                f"unknown coevolution option(s) {', '.join(map(repr, unknown))}"
+                f" (known: {', '.join(sorted(known))})"
+            )
+        return cls(**data)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+# -- the sampling rules ---------------------------------------------------------------
+
+
+def rank_weights(scores: Sequence[float] | np.ndarray, temperature: float) -> np.ndarray:
+    """PLR's rank prioritisation: ``h(rank) = rank ** (-1 / temperature)``, normalised.
+
+    ``scores`` is flattened first; rank 1 is the highest score, ties ranked
+    in the order of the scores (a stable sort). The temperature is an
+    exponent: lower is greedier.
+    """
+    values = np.asarray(scores, dtype=np.float64).reshape(-1)
+    if values.size == 0:
+        return values
+    temperature = check_number(
+        "temperature", temperature, minimum=0, strict_minimum=True, error=CoevolutionError
+    )
+    order = np.argsort(-values, kind="stable")
+    ranks = np.empty(values.size, dtype=np.float64)
+    ranks[order] = np.arange(1, values.size + 1)
+    weights = ranks ** (-1.0 / temperature)
+    return weights / weights.sum()
+
+
+def staleness_weights(last_played: Sequence[int] | np.ndarray, now: int) -> np.ndarray:
+    """PLR's staleness distribution ``(now - last_i) / sum_j (now - last_j)``.
+
+    Uniform when every member was played at ``now``.
+    """
+    ages = now - np.asarray(last_played, dtype=np.float64).reshape(-1)
+    if ages.size == 0:
+        return ages
+    if np.any(ages < 0):
+        raise CoevolutionError(f"a member was played after generation {now}")
+    total = ages.sum()
+    if total <= 0:
+        return np.full(ages.size, 1.0 / ages.size)
+    return ages / total
+
+
+def replay_distribution(
+    scores: Sequence[float] | np.ndarray,
+    last_played: Sequence[int] | np.ndarray,
+    now: int,
+    *,
+    temperature: float,
+    staleness: float,
+) -> np.ndarray:
+    """``(1 - staleness) * rank_weights + staleness * staleness_weights`` over the members."""
+    return (1.0 - staleness) * rank_weights(scores, temperature) + staleness * staleness_weights(
+        last_played, now
+    )
+
+
+# -- the population -------------------------------------------------------------------
+
+
+@dataclass
+class MazeRecord:
+    """One maze that was ever a member (a row of ``mazes.csv``).
+
+    ``origin`` is ``family`` (a fresh maze of the target's family) or
+    ``mutant`` (of ``parent``, a record id); ``birth`` the generation it was
+    first played and admitted at, ``retired`` the one it was replaced at
+    (None while a member). ``score``, ``success`` and ``reward`` are those of
+    the last generation that played it (``success`` and ``reward`` are the
+    agent population's means over its 4 rotations), ``best_reward`` the best
+    R̄ an agent ever had on it; ``plays`` counts the generations that played it.
+    """
+
+    id: int
+    maze: str
+    origin: str
+    parent: int | None
+    birth: int
+    profile: DifficultyProfile
+    difficulty: float
+    score: float = 0.0
+    success: float = math.nan
+    reward: float = math.nan
+    best_reward: float = -math.inf
+    plays: int = 0
+    last_played: int = 0
+    retired: int | None = None
+    point: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def descriptor(self) -> np.ndarray:
+        """The maze's point in the metric space (see the module docstring)."""
+        if self.point is None:
+            self.point = descriptor(self.maze, self.profile)
+        return self.point
+
+    def to_row(self) -> dict[str, Any]:
+        """The record as a ``mazes.csv`` row."""
+        return {
+            "id": self.id,
+            "maze": self.maze,
+            "origin": self.origin,
+            "parent": "" if self.parent is None else self.parent,
+            "birth": self.birth,
+            "retired": "" if self.retired is None else self.retired,
+            "plays": self.plays,
+            "last_played": self.last_played,
+            "score": round(self.score, 6),
+            "success": round(self.success, 6),
+            "reward": round(self.reward, 6),
+            "best_reward": round(self.best_reward, 6),
+            "difficulty": round(self.difficulty, 4),
+            **{k: round(float(v), 4) for k, v in self.profile.components().items()},
+        }
+
+
+#: The columns of ``mazes.csv``, in order.
+MAZES_CSV_FIELDS = (
+    "id maze origin parent birth retired plays last_played score success reward best_reward"
+    " difficulty path_length intersections lures traps surprisingness deceptiveness"
+).split()
+
+
+def descriptor(maze: str | MazeSpec, profile: DifficultyProfile) -> np.ndarray:
+    """``(side, intersections, lures, traps, S, D)`` divided by :data:`DESCRIPTOR_SCALES`."""
+    spec = maze if isinstance(maze, MazeSpec) else MazeSpec.from_string(maze)
+    values = {"side": max(spec.width, spec.height), **profile.components()}
+    return np.array([values[name] / scale for name, scale in DESCRIPTOR_SCALES.items()])
+
+
+@dataclass(frozen=True)
+class BatchMaze:
+    """One maze of a generation's batch: a replayed member or a new maze."""
+
+    maze: str
+    member: int | None = None  # the record id of a replayed member
+    parent: int | None = None  # the record id a mutant comes from
+    origin: str = "replay"  # replay, mutant or family
+
+
+@dataclass(frozen=True)
+class MazeResult:
+    """How the agent population fared on one batch maze (all agents, 4 rotations each).
+
+    ``success`` and ``reward`` are means over every episode, ``best_reward``
+    the best agent's mean R̄ over its rotations, ``solved`` whether any
+    episode reached the goal.
+    """
+
+    success: float
+    reward: float
+    best_reward: float
+    solved: bool
+
+    @classmethod
+    def of(cls, success: np.ndarray, reward: np.ndarray) -> MazeResult:
+        """From ``(agents, rotations)`` arrays of successes and R̄."""
+        success = np.asarray(success, dtype=np.float64)
+        reward = np.asarray(reward, dtype=np.float64)
+        if success.ndim != 2 or success.shape != reward.shape or success.size == 0:
+            raise CoevolutionError(
+                f"results of shapes {success.shape} and {reward.shape}:"
+                " give (agents, rotations) arrays"
+            )
+        return cls(
+            success=float(success.mean()),
+            reward=float(reward.mean()),
+            best_reward=float(reward.mean(axis=1).max()),
+            solved=bool(success.any()),
+        )
+
+
+@dataclass
+class GenerationReport:
+    """What one :meth:`MazePopulation.update` did (a few columns of ``progress.csv``)."""
+
+    replayed: int = 0
+    new: int = 0
+    admitted: int = 0
+    retired: int = 0
+    batch_difficulty: float = 0.0
+    batch_score: float = 0.0
+
+
+@dataclass
+class MazePopulation:
+    """The level buffer of the ``coevolution`` regime (see the module docstring).
+
+    ``propose()`` gives the next generation's batch; ``update(batch,
+    results)`` scores it, admits new mazes and advances the generation.
+    """
+
+    target: str
+    config: MazePopulationConfig
+    seed: int
+    reserved: frozenset[int] = frozenset()
+    records: list[MazeRecord] = field(default_factory=list)
+    members: list[int] = field(default_factory=list)
+    generation: int = 0
+    rng: np.random.Generator = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        spec = MazeSpec.from_string(self.target)
+        self.target = spec.to_string()
+        side = max(spec.width, spec.height)
+        self.max_size = self.config.max_size or max(side, self.config.min_size)
+        self.genome = MazeGenome(min_size=self.config.min_size, max_size=self.max_size)
+        self.rng = np.random.default_rng(check_integer("seed", self.seed, minimum=0))
+        self._generated: dict[str, list[Maze]] = {}
+
+    # -- reading --------------------------------------------------------------------
+
+    def member_records(self) -> list[MazeRecord]:
+        """The current members, in the population's order."""
+        return [self.records[i] for i in self.members]
+
+    def replay_distribution(self) -> np.ndarray:
+        """The probability of replaying each member now (in :attr:`members` order)."""
+        members = self.member_records()
+        return replay_distribution(
+            [r.score for r in members],
+            [r.last_played for r in members],
+            self.generation,
+            temperature=self.config.temperature,
+            staleness=self.config.staleness,
+        )
+
+    def diversity(self) -> float:
+        """Mean distance between two members' descriptors (0 with fewer than two)."""
+        points = np.array([r.descriptor() for r in self.member_records()])
+        if len(points) < 2:
+            return 0.0
+        gaps = np.sqrt(((points[:, None, :] - points[None, :, :]) ** 2).sum(axis=-1))
+        return float(gaps.sum() / (len(points) * (len(points) - 1)))
+
+    # -- one generation ---------------------------------------------------------------
+
+    def propose(self) -> list[BatchMaze]:
+        """The mazes of the next generation: replayed members first, then new mazes."""
+        c, rng = self.config, self.rng
+        n_replay = 0
+        if len(self.members) >= c.batch:
+            n_replay = int(rng.binomial(c.batch, c.replay_probability))
+        batch: list[BatchMaze] = []
+        if n_replay:
+            chosen = rng.choice(
+                len(self.members), size=n_replay, replace=False, p=self.replay_distribution()
+            )
+            for index in chosen:
+                record = self.records[self.members[int(index)]]
+                batch.append(BatchMaze(record.maze, member=record.id))
+        taken = {r.maze for r in self.member_records()} | {b.maze for b in batch}
+        while len(batch) < c.batch:
+            new = self._new_maze(taken)
+            taken.add(new.maze)
+            batch.append(new)
+        return batch
+
+    def update(self, batch: Sequence[BatchMaze], results: Sequence[MazeResult]) -> GenerationReport:
+        """Score ``batch`` by ``results`` (one per maze), admit new mazes, advance a generation."""
+        if len(batch) != len(results):
+            raise CoevolutionError(f"{len(results)} results for a batch of {len(batch)} mazes")
+        self.generation += 1
+        now = self.generation
+        report = GenerationReport()
+        difficulties, scores = [], []
+        for item, result in zip(batch, results, strict=True):
+            if item.member is not None:
+                record = self.records[item.member]
+                self._score(record, result, now)
+                report.replayed += 1
+            else:
+                report.new += 1
+                profile = self.profile(item.maze)
+                record = MazeRecord(
+                    id=len(self.records),
+                    maze=item.maze,
+                    origin=item.origin,
+                    parent=item.parent,
+                    birth=now,
+                    profile=profile,
+                    difficulty=profile.score(),
+                )
+                self._score(record, result, now)
+                full = len(self.members) >= self.config.capacity
+                if result.solved and record.score > 0 and self._admit(record):
+                    report.admitted += 1
+                    report.retired += full
+            difficulties.append(record.difficulty)
+            scores.append(record.score)
+        report.batch_difficulty = float(np.mean(difficulties)) if difficulties else 0.0
+        report.batch_score = float(np.mean(scores)) if scores else 0.0
+        return report
+
+    def profile(self, maze: str) -> DifficultyProfile:
+        """The difficulty profile of a maze (the same for its 4 rotations)."""
+        return DifficultyProfile.of(self.generated(maze)[0])
+
+    def generated(self, maze: str) -> list[Maze]:
+        """The maze in its 4 rotations, generated once while it is a member or in a batch."""
+        cache = self._generated
+        if maze not in cache:
+            if len(cache) > 2 * self.config.capacity + 2 * self.config.batch:
+                keep = {r.maze for r in self.member_records()}
+                for old in [m for m in cache if m not in keep]:
+                    del cache[old]
+            cache[maze] = as_mazes(rotations(maze))
+        return cache[maze]
+
+    # -- inner workings ----------------------------------------------------------------
+
+    def _score(self, record: MazeRecord, result: MazeResult, now: int) -> None:
+        record.success, record.reward = result.success, result.reward
+        record.best_reward = max(record.best_reward, result.best_reward)
+        if self.config.score == "learnability":
+            record.score = result.success * (1.0 - result.success)
+        else:
+            record.score = record.best_reward - result.reward
+        record.plays += 1
+        record.last_played = now
+
+    def _admit(self, record: MazeRecord) -> bool:
+        """Add ``record`` (a new maze that met the minimal criterion) if there is room for it."""
+        if len(self.members) < self.config.capacity:
+            self.records.append(record)
+            self.members.append(record.id)
+            return True
+        members = self.member_records()
+        lowest = min(r.score for r in members)
+        if record.score <= lowest:
+            return False
+        tied = [r for r in members if r.score == lowest]
+        point = record.descriptor()
+        victim = min(tied, key=lambda r: (float(np.linalg.norm(r.descriptor() - point)), r.id))
+        victim.retired = record.birth
+        self.records.append(record)
+        self.members[self.members.index(victim.id)] = record.id
+        return True
+
+    def _new_maze(self, taken: set[str]) -> BatchMaze:
+        """A mutant of a member (ACCEL) or a fresh family maze, not one of ``taken``."""
+        c, rng = self.config, self.rng
+        new = None
+        for _ in range(_REDRAWS):
+            if self.members and rng.random() < c.mutation_probability:
+                index = int(rng.choice(len(self.members), p=self.replay_distribution()))
+                parent = self.records[self.members[index]]
+                edits = int(rng.integers(1, c.edits + 1))
+                spec = self.genome.mutate(MazeSpec.from_string(parent.maze), rng, n=edits)
+                new = BatchMaze(spec.to_string(), parent=parent.id, origin="mutant")
+            else:
+                new = BatchMaze(self._family_maze(), origin="family")
+            if new.maze not in taken:
+                break
+        assert new is not None
+        return new
+
+    def _family_maze(self) -> str:
+        """The target's fields with a fresh seed and a side in ``[min_size, max_size]``."""
+        spec = MazeSpec.from_string(self.target)
+        side = int(self.rng.integers(self.config.min_size, self.max_size + 1))
+        longest = max(spec.width, spec.height)
+        width = max(MIN_SIZE, round(spec.width * side / longest))
+        height = max(MIN_SIZE, round(spec.height * side / longest))
+        while True:
+            seed = int(self.rng.integers(SEED_RANGE))
+            if seed not in self.reserved:
+                break
+        return dataclasses.replace(spec, width=width, height=height, seed=seed).to_string()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_generated"] = {}  # a cache, rebuilt on demand
+        return state
+
+
+def records_rows(records: Iterable[MazeRecord]) -> list[dict[str, Any]]:
+    """``mazes.csv``'s rows for ``records``."""
+    return [record.to_row() for record in records]

@@ -1,0 +1,435 @@
+"""Evolution in the ``coevolution`` regime: agents and a maze population evolve together.
+
+``amaze-evolve --regime coevolution --budget-seconds 300 --out runs/co`` runs
+the generation loop (:class:`~evolution.generations.GenerationLoop`) with a
+:class:`~amaze.curriculum.coevolution.MazePopulation` beside the agents::
+
+    batch = mazes.propose()                     # replayed members + new mazes
+    result = play(algorithm.ask(), batch)        # every agent, every maze, 4 rotations
+    algorithm.tell(candidates, result.fitness)   # fitness: mean over the batch
+    mazes.update(batch, per-maze results)        # scores, admission, retirement
+    validate(the generation's best agent)        # on the validation mazes
+
+**Champion.** Fitness on a changing batch does not compare across
+generations, so the champion is chosen on fixed *validation mazes*:
+``coevolution.validation`` (16) mazes of the target's family whose seeds are
+neither the evaluation suite's nor any training maze's
+(:func:`~amaze.curriculum.validation.validation_mazes`). Each generation's
+best agent on its batch is played on them (4 rotations each); the champion
+is the agent with the best validation fitness so far (the run's ``fitness``
+measure, the earliest on ties). The suite itself is never looked at before
+the end. ``summary.json`` also reports the champion on ``UNSEEN_MAZES``
+other family mazes no part of the run played (``unseen_success``,
+``unseen_reward``).
+
+**Budget.** Env steps count every episode played, validation included;
+seconds everything the loop does. Where the time goes is reported in
+``summary.json`` (``time``: evaluation, validation, breeding, mazes,
+logging and checkpoints).
+
+**Run folder**: the direct regime's (``config.json``, ``progress.csv``,
+``checkpoints/state.pkl``, ``champion.npz``, ``summary.json``) and
+
+* ``mazes.csv``: every maze that was ever a member of the population (its
+  string, origin, parent, birth, retirement, last scores and difficulty
+  profile; :data:`~amaze.curriculum.coevolution.MAZES_CSV_FIELDS`), written
+  with each checkpoint;
+* ``population.png``: the members at the end, best score first, captioned
+  with their score, success and difficulty;
+* ``coevolution.png``: fitness on the batches, validation success of each
+  generation's best and of the champion, and the difficulty of the batches
+  and of the population against the target's, over env steps;
+* ``trajectories/``: the champion in the target's 4 rotations.
+
+**Resume.** The checkpoint holds the algorithm, the maze population (its
+members, records, scores and random generator) and the champion, so a run
+resumed after a kill goes on bit-identically (seconds budgets aside).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from amaze.curriculum.coevolution import (
+    MAZES_CSV_FIELDS,
+    MazePopulation,
+    MazePopulationConfig,
+    MazeResult,
+)
+from amaze.curriculum.genome import difficulty
+from amaze.curriculum.picture import save_population_png
+from amaze.curriculum.validation import reserved_seeds, validation_mazes
+from amaze.maze import rotations
+from amaze.maze.spec import MazeSpec
+from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
+from amaze.runs.folder import ProgressLog
+from evolution import EvolutionConfigError
+from evolution.agent_file import load_agent, save_agent
+from evolution.algorithms import SearchAlgorithm, make_algorithm
+from evolution.config import CHECKPOINT_ALLOWLIST
+from evolution.generations import GenerationLoop
+from evolution.population import PopulationEvaluator
+
+__all__ = ["UNSEEN_MAZES", "EvolutionCoevolutionRun", "unseen_mazes"]
+
+PROGRESS_FIELDS = (
+    "generation", "steps", "seconds", "best", "mean", "champion", "eval_seconds",
+    "validation", "validation_success", "champion_success", "members", "admitted",
+    "batch_difficulty", "population_difficulty", "diversity",
+)  # fmt: skip
+#: Version of the checkpoint layout; a checkpoint of another version is refused.
+CHECKPOINT_VERSION = 1
+#: Family mazes the champion is reported on at the end (never played before).
+UNSEEN_MAZES = 32
+#: The stream of the maze population's generator, apart from the algorithm's.
+_POPULATION_STREAM = 0xC0E
+#: Time categories of ``summary.json``'s ``time``.
+TIME_PARTS = ("evaluation", "validation", "breeding", "mazes", "logging_and_checkpoints")
+
+
+def unseen_mazes(target: str, seed: int, n: int = UNSEEN_MAZES) -> list[str]:
+    """``n`` family mazes of ``target`` drawn apart from the validation mazes of ``seed``."""
+    return validation_mazes(target, n, (1 << 32) + seed)
+
+
+@dataclass
+class _State:
+    """The run state saved in every checkpoint."""
+
+    algorithm: SearchAlgorithm
+    mazes: MazePopulation
+    generation: int = 0
+    steps: int = 0
+    validation_steps: int = 0
+    seconds: float = 0.0
+    eval_seconds: float = 0.0
+    champion_fitness: float = -np.inf
+    champion_success: float = 0.0
+    champion_generation: int = 0
+    champion: tuple[dict[str, np.ndarray], dict] | None = None
+    time: dict[str, float] = field(default_factory=lambda: dict.fromkeys(TIME_PARTS[:-1], 0.0))
+    version: int = CHECKPOINT_VERSION
+
+
+class EvolutionCoevolutionRun(GenerationLoop):
+    """Generations of agents on batches of a co-evolving maze population."""
+
+    progress_fields = PROGRESS_FIELDS
+    outputs: ClassVar[tuple[str, ...]] = (
+        "champion.npz", "summary.json", "progress.csv", "mazes.csv", "population.png",
+        "coevolution.png",
+    )  # fmt: skip
+    state: _State  # type: ignore[assignment]
+
+    @cached_property
+    def options(self) -> MazePopulationConfig:
+        return MazePopulationConfig.from_dict(self.config.coevolution)
+
+    @cached_property
+    def validation_mazes(self) -> list[str]:
+        c = self.config
+        return validation_mazes(c.target, self.options.validation, c.seed)
+
+    @cached_property
+    def validation(self) -> PopulationEvaluator:
+        """The validation mazes in their rotations (the champion is chosen there)."""
+        c = self.config
+        return PopulationEvaluator(
+            self.validation_mazes,
+            c.robot,
+            fitness=c.fitness,
+            rotations=True,
+            n_policies=self.options.validation_candidates,
+        )
+
+    # -- the lifecycle's hooks --------------------------------------------------------
+
+    def start(self) -> None:
+        c = self.config
+        algorithm = make_algorithm(c.algo, c.algorithm, c.robot, c.seed)
+        taken = {MazeSpec.from_string(m).seed for m in self.validation_mazes}
+        taken |= {MazeSpec.from_string(m).seed for m in unseen_mazes(c.target, c.seed)}
+        population = MazePopulation(
+            c.target,
+            self.options,
+            seed=int(np.random.SeedSequence([c.seed, _POPULATION_STREAM]).generate_state(1)[0]),
+            reserved=reserved_seeds() | taken,
+        )
+        self.state = _State(algorithm, population)
+        self.validation  # noqa: B018
+
+    def restore(self) -> int | None:
+        if not self.checkpoint.exists():
+            return None
+        state = read_checkpoint(
+            self.checkpoint, CHECKPOINT_ALLOWLIST, EvolutionConfigError, expected=_State
+        )
+        if state.version != CHECKPOINT_VERSION:
+            raise EvolutionConfigError(
+                f"checkpoint {str(self.checkpoint)!r} is of version {state.version!r},"
+                f" not {CHECKPOINT_VERSION}"
+            )
+        self.state = state
+        self.champion_fitness = state.champion_fitness
+        self.validation  # noqa: B018
+        return state.generation
+
+    def train(self, progress_bar: bool) -> None:
+        if self.state.generation:
+            self.save_champion()  # the checkpoint's champion, whatever was written after it
+        super().train(progress_bar)
+
+    def final_agent(self) -> Any:
+        if self.state.champion is None:
+            raise EvolutionConfigError("the run evaluated no generation (budget too small?)")
+        return load_agent(self.out / "champion.npz")
+
+    def figures(self) -> dict[str, Any]:
+        c, s = self.config, self.state
+        unseen = PopulationEvaluator(unseen_mazes(c.target, c.seed), c.robot, rotations=True)
+        result = unseen.evaluate(self.final_agent())
+        records = s.mazes.records
+        return {
+            "algo": c.algo,
+            "robot": c.robot,
+            "seed": c.seed,
+            "regime": c.regime,
+            "target": c.target,
+            "fitness_measure": c.fitness,
+            "champion_fitness": s.champion_fitness,
+            "champion_validation_success": s.champion_success,
+            "champion_generation": s.champion_generation,
+            "unseen_success": float(result.success_rate[0]),
+            "unseen_reward": float(result.paper_reward[0]),
+            "generations": s.generation,
+            "env_steps": s.steps,
+            "validation_steps": s.validation_steps,
+            "seconds": round(s.seconds, 3),
+            "evaluation_seconds": round(s.eval_seconds, 3),
+            "policy_steps_per_second": round(s.steps / max(s.eval_seconds, 1e-9)),
+            "time": self.time_breakdown(),
+            "mazes_ever": len(records),
+            "members": len(s.mazes.members),
+            "population_difficulty": _mean([r.difficulty for r in s.mazes.member_records()]),
+            "target_difficulty": difficulty(c.target),
+            "coevolution": self.options.to_dict(),
+            "budget_steps": c.budget_steps,
+            "budget_seconds": c.budget_seconds,
+        }
+
+    def trajectory_mazes(self) -> list[tuple[str, str]]:
+        """The champion in the target's 4 rotations."""
+        return [(f"target-rotation-{i}", m) for i, m in enumerate(rotations(self.config.target))]
+
+    def extra_outputs(self) -> None:
+        self.write_mazes_csv()
+        s = self.state
+        title = f"maze population after {s.generation} generations ({len(s.mazes.records)} ever)"
+        save_population_png(s.mazes, self.out / "population.png", title)
+        save_coevolution_plot(
+            self.out / "progress.csv", self.out / "coevolution.png", self.config.target,
+            title=f"{self.config.algo}, coevolution, seed {self.config.seed}",
+        )  # fmt: skip
+
+    @classmethod
+    def headline(cls, summary: Mapping[str, Any]) -> str:
+        return (
+            f"{summary['generations']} generations, {summary['mazes_ever']} mazes;"
+            f" unseen family mazes: success {summary['unseen_success']:.3f};"
+            f" {super().headline(summary)}"
+        )
+
+    # -- one generation ---------------------------------------------------------------
+
+    def generation(self) -> dict[str, Any]:
+        """Play the population on a batch, breed, score the mazes, validate the best agents."""
+        c, s = self.config, self.state
+        clock = _Clock(s.time)
+        algorithm = s.algorithm
+        candidates = algorithm.ask()
+        clock.lap("breeding")
+        batch = s.mazes.propose()
+        evaluator = PopulationEvaluator(
+            [rotated for b in batch for rotated in s.mazes.generated(b.maze)],
+            c.robot,
+            fitness=c.fitness,
+            n_policies=len(candidates),
+        )
+        clock.lap("mazes")
+        policy = algorithm.population_policy(candidates)
+        clock.lap("breeding")
+        result = evaluator.evaluate(policy)
+        clock.lap("evaluation")
+        algorithm.tell(candidates, result.fitness)
+        clock.lap("breeding")
+        shape = (len(candidates), len(batch), 4)
+        success = result.per_episode("success").reshape(shape)
+        reward = result.per_episode("paper_reward").reshape(shape)
+        report = s.mazes.update(
+            batch, [MazeResult.of(success[:, b], reward[:, b]) for b in range(len(batch))]
+        )
+        clock.lap("mazes")
+        s.generation += 1
+        validation = validation_success = float("nan")
+        options = self.options
+        if (s.generation - 1) % options.validation_every == 0:
+            top = np.argsort(-result.fitness, kind="stable")[: options.validation_candidates]
+            checked = self.validation.evaluate(
+                algorithm.population_policy([candidates[i] for i in top])
+            )
+            first = checked.best
+            validation = float(checked.fitness[first])
+            validation_success = float(checked.success_rate[first])
+            if validation > s.champion_fitness:
+                s.champion_fitness, s.champion_success = validation, validation_success
+                s.champion_generation = s.generation
+                s.champion = algorithm.candidate_arrays(candidates[top[first]])
+                self.champion_fitness = validation
+                self.save_champion()
+            s.steps += checked.env_steps
+            s.validation_steps += checked.env_steps
+            clock.lap("validation")
+        s.steps += result.env_steps
+        s.eval_seconds += result.seconds
+        members = s.mazes.member_records()
+        diversity = s.mazes.diversity()
+        clock.lap("mazes")
+        s.seconds += clock.total
+        return {
+            "generation": s.generation,
+            "steps": s.steps,
+            "seconds": round(s.seconds, 3),
+            "best": float(np.max(result.fitness)),
+            "mean": float(np.mean(result.fitness)),
+            "champion": s.champion_fitness,
+            "eval_seconds": round(result.seconds, 4),
+            "validation": validation,
+            "validation_success": validation_success,
+            "champion_success": s.champion_success,
+            "members": len(members),
+            "admitted": report.admitted,
+            "batch_difficulty": round(report.batch_difficulty, 4),
+            "population_difficulty": round(_mean([r.difficulty for r in members]), 4),
+            "diversity": round(diversity, 4),
+        }
+
+    def save_champion(self) -> None:
+        s, c = self.state, self.config
+        if s.champion is None:
+            return
+        arrays, architecture = s.champion
+        save_agent(
+            self.out / "champion.npz",
+            arrays,
+            {
+                "architecture": architecture,
+                "robot": c.robot,
+                "regime": c.regime,
+                "target": c.target,
+                "validation_mazes": self.validation_mazes,
+                "fitness": s.champion_fitness,
+                "fitness_measure": c.fitness,
+                "algorithm": c.algo,
+                "generation": s.champion_generation,
+                "seed": c.seed,
+            },
+        )
+
+    def save_checkpoint(self) -> None:
+        write_checkpoint(self.checkpoint, self.state)
+        self.write_mazes_csv()
+
+    def time_breakdown(self) -> dict[str, float]:
+        """Seconds spent per part of the loop; logging and checkpoints are the rest."""
+        s = self.state
+        parts = {k: s.time.get(k, 0.0) for k in TIME_PARTS[:-1]}
+        parts["logging_and_checkpoints"] = max(s.seconds - sum(parts.values()), 0.0)
+        return {k: round(v, 3) for k, v in parts.items()}
+
+    def write_mazes_csv(self) -> Path:
+        """``mazes.csv``: every maze that was ever a member, written atomically."""
+        path = self.out / "mazes.csv"
+        tmp = path.with_name(f".{path.name}.tmp")
+        with open(tmp, "w", newline="", encoding="utf-8") as handle:
+            writer = csv.DictWriter(handle, fieldnames=MAZES_CSV_FIELDS)
+            writer.writeheader()
+            writer.writerows(record.to_row() for record in self.state.mazes.records)
+        os.replace(tmp, path)
+        return path
+
+
+class _Clock:
+    """Adds the time since its last lap to a category of ``parts``."""
+
+    def __init__(self, parts: dict[str, float]) -> None:
+        self.parts = parts
+        self.started = self.last = time.perf_counter()
+
+    def lap(self, part: str) -> None:
+        now = time.perf_counter()
+        self.parts[part] += now - self.last
+        self.last = now
+
+    @property
+    def total(self) -> float:
+        return self.last - self.started
+
+
+def _mean(values: list[float]) -> float:
+    return float(np.mean(values)) if values else 0.0
+
+
+def save_coevolution_plot(csv_path: Path, png_path: Path, target: str, title: str = "") -> Path:
+    """``coevolution.png``: fitness, validation success and maze difficulty over env steps.
+
+    Top: best and mean fitness of each generation on its batch. Middle: the
+    validation success of each generation's best agent and of the champion.
+    Bottom: the mean difficulty of each batch and of the population, and the
+    target's as a dashed line.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = ProgressLog(csv_path, PROGRESS_FIELDS).rows()
+    steps = np.array([float(r["steps"]) for r in rows])
+
+    def column(name: str) -> list[float]:
+        return [float(r[name]) for r in rows]
+
+    figure, (fit, valid, hard) = plt.subplots(3, 1, figsize=(7, 8), dpi=110, sharex=True)
+    fit.plot(steps, column("mean"), ":", label="mean on the batch")
+    fit.plot(steps, column("best"), "-", lw=0.8, label="best on the batch")
+    fit.set_ylabel("fitness")
+    valid.plot(steps, column("validation_success"), "-", lw=0.6, alpha=0.6,
+               label="generation's best")  # fmt: skip
+    valid.plot(steps, column("champion_success"), "-", lw=1.6, label="champion")
+    valid.set_ylabel("validation success")
+    valid.set_ylim(-0.02, 1.02)
+    hard.plot(steps, column("batch_difficulty"), "-", lw=0.6, alpha=0.6, label="batch")
+    hard.plot(steps, column("population_difficulty"), "-", lw=1.6, label="population")
+    hard.axhline(difficulty(target), ls="--", color="grey", label="target")
+    hard.set_ylabel("difficulty")
+    hard.set_xlabel("environment steps")
+    for axes in (fit, valid, hard):
+        axes.grid(alpha=0.3)
+        axes.legend(loc="lower right", fontsize=8)
+    if title:
+        fit.set_title(title)
+    figure.tight_layout()
+    png_path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = png_path.with_name(f".{png_path.name}.tmp.png")
+    figure.savefig(tmp)
+    plt.close(figure)
+    os.replace(tmp, png_path)
+    return png_path

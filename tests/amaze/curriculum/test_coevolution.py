@@ -1,0 +1,235 @@
+"""The co-evolved maze population: its sampling and scoring rules against hand-computed cases."""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+
+import numpy as np
+import pytest
+
+from amaze.curriculum.coevolution import (
+    BatchMaze,
+    CoevolutionError,
+    MazePopulation,
+    MazePopulationConfig,
+    MazeResult,
+    rank_weights,
+    replay_distribution,
+    staleness_weights,
+)
+from amaze.curriculum.validation import reserved_seeds
+from amaze.maze.spec import MazeSpec
+
+TARGET = "M2000007_20x20_C1_l.25_L.25_t.5_T.5"
+
+
+def _population(**options: object) -> MazePopulation:
+    config = MazePopulationConfig(**{"capacity": 4, "batch": 2, **options})
+    return MazePopulation(TARGET, config, seed=3, reserved=reserved_seeds())
+
+
+def _result(p: float, agents: int = 8) -> MazeResult:
+    """A result where a fraction ``p`` of 8 agents x 4 rotations reached the goal."""
+    success = np.zeros(agents * 4)
+    success[: round(p * agents * 4)] = 1
+    success = success.reshape(agents, 4)
+    return MazeResult.of(success, np.where(success > 0, 0.5, -1.0))
+
+
+def _family(side: int, seed: int) -> str:
+    return dataclasses.replace(
+        MazeSpec.from_string(TARGET), width=side, height=side, seed=seed
+    ).to_string()
+
+
+# -- the sampling rules -------------------------------------------------------------------
+
+
+def test_rank_weights_raise_ranks_to_the_power_minus_one_over_the_temperature() -> None:
+    weights = rank_weights([0.1, 0.3, 0.2], temperature=0.3)
+    h = np.array([3.0 ** (-1 / 0.3), 1.0, 2.0 ** (-1 / 0.3)])  # ranks 3, 1, 2
+    np.testing.assert_allclose(weights, h / h.sum(), rtol=1e-12)
+    # the same with temperature 1: 1/rank
+    np.testing.assert_allclose(rank_weights([0.1, 0.3, 0.2], 1.0), [2 / 11, 6 / 11, 3 / 11])
+
+
+def test_rank_weights_flatten_their_scores_and_rank_ties_in_order() -> None:
+    flat = rank_weights([0.1, 0.4, 0.3, 0.2], 0.5)
+    np.testing.assert_array_equal(rank_weights([[0.1, 0.4], [0.3, 0.2]], 0.5), flat)
+    np.testing.assert_allclose(rank_weights([0.5, 0.5], 1.0), [2 / 3, 1 / 3])
+    with pytest.raises(CoevolutionError, match="temperature"):
+        rank_weights([0.1], 0.0)
+
+
+def test_staleness_weights() -> None:
+    np.testing.assert_allclose(staleness_weights([0, 2, 5], now=5), [5 / 8, 3 / 8, 0])
+    np.testing.assert_allclose(staleness_weights([5, 5], now=5), [0.5, 0.5])
+    with pytest.raises(CoevolutionError, match="after generation"):
+        staleness_weights([6], now=5)
+
+
+def test_the_replay_distribution_mixes_rank_and_staleness() -> None:
+    got = replay_distribution([0.2, 0.1], [3, 1], now=4, temperature=1.0, staleness=0.3)
+    # ranks 1, 2 -> (2/3, 1/3); ages 1, 3 -> (1/4, 3/4)
+    np.testing.assert_allclose(got, [0.7 * 2 / 3 + 0.3 / 4, 0.7 / 3 + 0.3 * 3 / 4])
+    assert got.sum() == pytest.approx(1.0)
+
+
+def test_maze_results() -> None:
+    success = np.array([[1, 0, 0, 0], [1, 1, 1, 1]])
+    reward = np.array([[0.5, -1, -1, -1], [0.9, 0.7, 0.9, 0.7]])
+    result = MazeResult.of(success, reward)
+    assert result.success == pytest.approx(5 / 8)
+    assert result.reward == pytest.approx(reward.mean())
+    assert result.best_reward == pytest.approx(0.8) and result.solved
+    assert not MazeResult.of(np.zeros((2, 4)), np.zeros((2, 4))).solved
+    with pytest.raises(CoevolutionError, match="shapes"):
+        MazeResult.of(np.zeros(4), np.zeros(4))
+
+
+# -- scores and admission -----------------------------------------------------------------
+
+
+def test_learnability_scores_and_the_minimal_criterion() -> None:
+    population = _population()
+    mazes = [BatchMaze(_family(6, 11), origin="family"), BatchMaze(_family(7, 12), origin="family")]
+    report = population.update(mazes, [_result(0.25), _result(0.0)])
+    assert (report.new, report.admitted) == (2, 1)  # nobody solved the second one
+    (record,) = population.member_records()
+    assert record.maze == mazes[0].maze and record.birth == 1 and record.origin == "family"
+    assert record.score == pytest.approx(0.25 * 0.75)
+    # solved by every agent: learnability 0, not admitted either
+    report = population.update([BatchMaze(_family(8, 13), origin="family")], [_result(1.0)])
+    assert report.admitted == 0 and len(population.members) == 1
+
+
+def test_regret_is_the_best_reward_ever_minus_the_mean_reward_now() -> None:
+    population = _population(score="regret")
+    maze = BatchMaze(_family(6, 11), origin="family")
+    population.update([maze], [_result(0.5)])
+    record = population.member_records()[0]
+    assert record.score == pytest.approx(0.5 - (0.5 * 0.5 - 0.5))  # best 0.5, mean -0.25
+    population.update([BatchMaze(record.maze, member=record.id)], [_result(0.25)])
+    assert record.best_reward == pytest.approx(0.5)  # the best ever is kept
+    assert record.score == pytest.approx(0.5 - (0.25 * 0.5 - 0.75))
+    assert record.plays == 2 and record.last_played == 2
+
+
+def test_a_full_population_replaces_its_lowest_score_only_by_a_higher_one() -> None:
+    population = _population(capacity=2, batch=1)
+    population.update([BatchMaze(_family(6, 1), origin="family")], [_result(0.5)])  # 0.25
+    population.update([BatchMaze(_family(6, 2), origin="family")], [_result(0.25)])  # 0.1875
+    report = population.update([BatchMaze(_family(6, 3), origin="family")], [_result(0.125)])
+    assert report.admitted == 0  # 0.109 < 0.1875
+    report = population.update([BatchMaze(_family(6, 4), origin="family")], [_result(0.375)])
+    assert (report.admitted, report.retired) == (1, 1)  # 0.234 > 0.1875
+    assert [r.maze for r in population.member_records()] == [_family(6, 1), _family(6, 4)]
+    retired = [r for r in population.records if r.retired is not None]
+    assert [(r.maze, r.retired) for r in retired] == [(_family(6, 2), 4)]
+
+
+def test_among_tied_lowest_members_the_nearest_one_goes() -> None:
+    population = _population(capacity=2, batch=1)
+    small, large = _family(5, 1), _family(20, 2)
+    population.update([BatchMaze(small, origin="family")], [_result(0.5)])
+    population.update([BatchMaze(large, origin="family")], [_result(0.5)])
+    for record in population.member_records():  # everyone solves both now: both score 0
+        population.update([BatchMaze(record.maze, member=record.id)], [_result(1.0)])
+    population.update([BatchMaze(_family(19, 3), origin="family")], [_result(0.5)])
+    assert [r.maze for r in population.member_records()] == [small, _family(19, 3)]
+
+
+# -- proposals ----------------------------------------------------------------------------
+
+
+def _fill(population: MazePopulation, **options: object) -> None:
+    """Admit new mazes until the population is full (every one half solved), then set options."""
+    config = population.config
+    population.config = dataclasses.replace(config, replay_probability=0.0)
+    while len(population.members) < population.config.capacity:
+        batch = population.propose()
+        population.update(batch, [_result(0.5) for _ in batch])
+    population.config = dataclasses.replace(config, **options)
+
+
+def test_replay_never_falls_back_to_new_mazes_once_the_population_is_full_enough() -> None:
+    population = _population(capacity=4, batch=2, replay_probability=1.0)
+    first = population.propose()
+    assert all(b.member is None for b in first)  # nothing to replay yet
+    population.update(first, [_result(0.5) for _ in first])
+    assert len(population.members) == 2
+    for _ in range(20):
+        batch = population.propose()
+        assert all(b.member is not None for b in batch)
+        assert len({b.member for b in batch}) == len(batch)  # drawn without replacement
+        population.update(batch, [_result(0.5) for _ in batch])
+    population = _population(capacity=4, batch=2, replay_probability=0.0)
+    _fill(population)
+    assert all(b.member is None for b in population.propose())
+
+
+def test_replayed_members_follow_the_replay_distribution() -> None:
+    population = _population(capacity=4, batch=1, temperature=1.0)
+    _fill(population, replay_probability=1.0)
+    for record, p in zip(population.member_records(), (0.5, 0.25, 0.125, 0.0625), strict=True):
+        population.update([BatchMaze(record.maze, member=record.id)], [_result(p)])
+    expected = population.replay_distribution()
+    draws = [population.propose()[0].member for _ in range(4000)]
+    counts = np.bincount([population.members.index(d) for d in draws], minlength=4)
+    np.testing.assert_allclose(counts / 4000, expected, atol=0.03)
+
+
+def test_new_mazes_are_family_mazes_or_mutants_of_members() -> None:
+    population = _population(capacity=16, batch=4, mutation_probability=0.5)
+    _fill(population)
+    members = {r.id: r.maze for r in population.member_records()}
+    target = MazeSpec.from_string(TARGET)
+    origins = set()
+    for _ in range(30):
+        batch = population.propose()
+        for item in batch:
+            spec = MazeSpec.from_string(item.maze)
+            assert 5 <= spec.width <= 20 and 5 <= spec.height <= 20
+            if item.origin == "family":
+                assert (spec.clue, spec.lure, spec.trap) == (target.clue, target.lure, target.trap)
+                assert spec.seed not in reserved_seeds()
+            elif item.origin == "mutant":
+                assert item.maze != members[item.parent]
+            origins.add(item.origin)
+        population.update(batch, [_result(0.5) for _ in batch])
+        members = {r.id: r.maze for r in population.records}
+    assert origins == {"replay", "family", "mutant"}
+
+
+def test_same_seed_same_population_and_a_pickle_goes_on_identically() -> None:
+    def step(population: MazePopulation, k: int) -> list[str]:
+        batch = population.propose()
+        population.update(batch, [_result((k + i) % 5 / 4) for i in range(len(batch))])
+        return [b.maze for b in batch]
+
+    a, b = _population(), _population()
+    history = [step(a, k) for k in range(12)]
+    assert history == [step(b, k) for k in range(12)]
+    copy = pickle.loads(pickle.dumps(a))
+    assert [step(copy, k) for k in range(12, 30)] == [step(a, k) for k in range(12, 30)]
+    assert [r.to_row() for r in copy.records] == [r.to_row() for r in a.records]
+    other = MazePopulation(TARGET, a.config, seed=4)
+    assert [step(other, k) for k in range(12)] != history
+
+
+@pytest.mark.parametrize(
+    ("options", "bad"),
+    [
+        ({"score": "fun"}, "score 'fun'"),
+        ({"capacity": 2, "batch": 4}, "capacity 2"),
+        ({"temperature": 0}, "temperature"),
+        ({"replay_probability": 1.5}, "replay_probability"),
+        ({"min_size": 1}, "min_size"),
+        ({"max_size": 4}, "max_size"),
+        ({"batchsize": 4}, "unknown coevolution option"),
+    ],
+)
+def test_bad_options_are_named(options: dict, bad: str) -> None:
+    with pytest.raises(CoevolutionError, match=bad):
+        MazePopulationConfig.from_dict(options)

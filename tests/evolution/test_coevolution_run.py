@@ -1,0 +1,171 @@
+"""Evolution in the coevolution regime: run folder, mazes.csv, resume after a kill, refusals."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
+from amaze.curriculum.validation import reserved_seeds
+from amaze.maze.spec import MazeSpec
+from evolution import EvolutionConfigError
+from evolution.agent_file import load_agent, read_agent
+from evolution.cli import main
+from evolution.coevolution import EvolutionCoevolutionRun
+from evolution.run import EvolutionRun, EvolveConfig
+from rl_baselines import RLConfigError
+from rl_baselines.config import TrainConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+#: A tiny coevolution run: small populations of agents and mazes, a checkpoint every generation.
+CONFIG = {
+    "regime": "coevolution",
+    "max_generations": 40,
+    "budget_steps": None,
+    "checkpoint_seconds": 0,
+    "algorithm": {"population_size": 8},
+    "coevolution": {"capacity": 6, "batch": 3, "validation": 4, "validation_every": 2},
+}
+
+
+def _write_config(folder: Path, **changes: object) -> Path:
+    path = folder / "config-in.json"
+    path.write_text(json.dumps({**CONFIG, **changes}))
+    return path
+
+
+def _mazes_csv(out: Path) -> list[dict[str, str]]:
+    with open(out / "mazes.csv", newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _progress(out: Path) -> list[dict[str, str]]:
+    with open(out / "progress.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    for row in rows:  # seconds differ from run to run
+        del row["seconds"], row["eval_seconds"]
+    return rows
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("coevolution")
+    out = folder / "run"
+    config = _write_config(folder)
+    assert main(["--config", str(config), "--out", str(out), "--no-progress"]) == 0
+    return out
+
+
+def test_a_coevolution_run_writes_its_folder(finished: Path) -> None:
+    for name in ("config.json", "progress.csv", "mazes.csv", "population.png", "coevolution.png"):
+        assert (finished / name).stat().st_size > 0, name
+    assert len(list((finished / "trajectories").glob("target-rotation-*.png"))) == 4
+    summary = json.loads((finished / "summary.json").read_text())
+    assert summary["regime"] == "coevolution" and summary["generations"] == 40
+    for key in ("success_rate", "unseen_success", "unseen_reward", "champion_fitness", "time"):
+        assert key in summary, key
+    assert set(summary["time"]) == {
+        "evaluation", "validation", "breeding", "mazes", "logging_and_checkpoints",
+    }  # fmt: skip
+    assert sum(summary["time"].values()) == pytest.approx(summary["seconds"], rel=0.05, abs=0.05)
+    assert 0 < summary["validation_steps"] < summary["env_steps"]
+    metadata = read_agent(finished / "champion.npz")[1]
+    assert metadata["generation"] == summary["champion_generation"]
+    assert len(metadata["validation_mazes"]) == 4
+    load_agent(finished / "champion.npz")  # an agent file amaze run can play
+
+
+def test_mazes_csv_holds_every_member_ever(finished: Path) -> None:
+    rows = _mazes_csv(finished)
+    assert rows and list(rows[0]) == MAZES_CSV_FIELDS
+    members = [r for r in rows if r["retired"] == ""]
+    summary = json.loads((finished / "summary.json").read_text())
+    assert len(members) == summary["members"] <= 6
+    assert [int(r["id"]) for r in rows] == list(range(len(rows)))
+    validation = set(read_agent(finished / "champion.npz")[1]["validation_mazes"])
+    for row in rows:
+        assert row["origin"] in ("family", "mutant")
+        assert row["maze"] not in validation
+        assert MazeSpec.from_string(row["maze"]).seed not in reserved_seeds()
+        assert float(row["success"]) > 0  # the minimal criterion: someone solved it
+        if row["origin"] == "mutant":
+            assert 0 <= int(row["parent"]) < int(row["id"])
+        if row["retired"]:
+            assert int(row["birth"]) <= int(row["retired"]) <= 40
+    progress = _progress(finished)
+    assert [int(r["generation"]) for r in progress] == list(range(1, 41))
+    assert sum(int(r["admitted"]) for r in progress) == len(rows)
+
+
+def test_resume_after_a_kill_is_bit_identical(finished: Path, tmp_path: Path) -> None:
+    out = tmp_path / "killed"
+    config = _write_config(tmp_path)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "evolution.cli", "--config", str(config), "--out", str(out),
+         "--no-progress"],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    deadline = time.monotonic() + 120
+    progress = out / "progress.csv"
+    while not (progress.exists() and len(progress.read_text().splitlines()) > 15):
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            pytest.fail("the run ended before it could be killed")
+        time.sleep(0.002)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    assert not (out / "summary.json").exists()
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    ours, theirs = read_agent(out / "champion.npz"), read_agent(finished / "champion.npz")
+    assert ours[0].keys() == theirs[0].keys()
+    assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in ours[0])
+    assert _mazes_csv(out) == _mazes_csv(finished)
+    assert _progress(out) == _progress(finished)
+    a, b = (json.loads((o / "summary.json").read_text()) for o in (out, finished))
+    for key in ("env_steps", "success_rate", "unseen_success", "champion_generation"):
+        assert a[key] == b[key], key
+
+
+def test_the_regime_chooses_the_run_class() -> None:
+    config = EvolveConfig.from_dict({"regime": "coevolution"})
+    assert EvolutionRun.run_class_for(config) is EvolutionCoevolutionRun
+
+
+@pytest.mark.parametrize(
+    ("changes", "bad"),
+    [
+        ({"coevolution": {"score": "fun"}}, "score 'fun'"),
+        ({"coevolution": {"capacity": 2, "batch": 4}}, "capacity 2"),
+        ({"coevolution": [1]}, "is not a JSON object"),
+        ({"mazes": ["M4_10x10_C1"]}, "mazes 'M4_10x10_C1'"),
+        ({"regime": "direct"}, "are for the coevolution regime"),
+        ({"target": "M4_1x10"}, "target"),
+    ],
+)
+def test_coevolution_config_refusals(changes: dict, bad: str) -> None:
+    with pytest.raises(EvolutionConfigError, match=bad):
+        EvolveConfig.from_dict({**CONFIG, **changes})
+
+
+def test_bad_options_are_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    config = _write_config(tmp_path, coevolution={"batchsize": 3})
+    assert main(["--config", str(config), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "batchsize" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_rl_trainer_refuses_the_coevolution_regime() -> None:
+    with pytest.raises(RLConfigError, match="'coevolution' is not run by this trainer"):
+        TrainConfig.from_dict({"regime": "coevolution"})

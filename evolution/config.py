@@ -10,6 +10,7 @@ curriculum regimes (:class:`evolution.curriculum.EvolutionCurriculumRun`).
 from __future__ import annotations
 
 import argparse
+import copy
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,7 +25,7 @@ from evolution import EvolutionConfigError
 from evolution.algorithms import ALGORITHMS, algorithm_class
 from evolution.population import FITNESS
 
-__all__ = ["CHECKPOINT_ALLOWLIST", "EvolveConfig"]
+__all__ = ["CHECKPOINT_ALLOWLIST", "COEVOLUTION_CMAES", "EvolveConfig"]
 
 #: What an evolution checkpoint may name (:mod:`amaze.runs.checkpoint`): the
 #: classes of the run's own libraries and the few functions they keep as values.
@@ -39,6 +40,12 @@ CHECKPOINT_ALLOWLIST = Allowlist.of(
 )
 
 
+#: CMA-ES options of the coevolution regime that a config leaves out: one 16-unit
+#: hidden layer and 16 IPOP restarts (a linear policy learns less there in the
+#: same time; see the README's "Co-evolved mazes").
+COEVOLUTION_CMAES: dict[str, Any] = {"network": {"hidden": [16]}, "restarts": 16}
+
+
 @dataclass
 class EvolveConfig(CurriculumConfig):
     """Everything that defines an evolution run (stored as ``config.json``).
@@ -46,7 +53,8 @@ class EvolveConfig(CurriculumConfig):
     In the direct and coevolution regimes, ``budget_steps``, ``budget_seconds``
     and ``max_generations`` may each be ``None`` (no limit), not all three;
     the coevolution regime (:mod:`evolution.coevolution`) evolves its own mazes
-    toward ``target``'s family, with the ``coevolution`` options. In a
+    toward ``target``'s family, with the ``coevolution`` options, and fills
+    the CMA-ES options it is not given from :data:`COEVOLUTION_CMAES`. In a
     curriculum regime (``interpolation``, ``edhucat``, ``edens``;
     :mod:`evolution.curriculum`) the budget is ``budget_steps`` and/or
     ``budget_seconds``, shared between stages and branches, and the mazes are
@@ -151,6 +159,8 @@ class EvolveConfig(CurriculumConfig):
             MazePopulationConfig.from_dict(self.coevolution)
         except CoevolutionError as problem:
             raise EvolutionConfigError(str(problem)) from None
+        if self.algo == "cmaes" and isinstance(self.algorithm, dict):
+            self.algorithm = {**copy.deepcopy(COEVOLUTION_CMAES), **self.algorithm}
         if self.mazes != [PAPER_TRAINING_MAZE]:
             raise EvolutionConfigError(
                 f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"

@@ -4,6 +4,7 @@
     python tools/fuzz_resume.py train 150
     python tools/fuzz_resume.py evolve-edhucat 200
     python tools/fuzz_resume.py train-edhucat 100
+    python tools/fuzz_resume.py evolve-coevolution 200
 
 A small run of the trainer is made once, in a temporary folder. Each try copies
 it (a curriculum run without its last branch's result, as if killed while
@@ -78,6 +79,19 @@ RUNS["evolve-edhucat"] = (
         "stages/stage-0/branch-0/agent/champion.npz",
         "stages/stage-1/branch-0/agent/learner.pkl",
     ],
+)
+RUNS["evolve-coevolution"] = (
+    {
+        "regime": "coevolution",
+        "target": "M0_6x6_C1",
+        "algo": "cmaes",
+        "budget_steps": None,
+        "max_generations": 4,
+        "checkpoint_seconds": 0,
+        "algorithm": {"population_size": 6},
+        "coevolution": {"capacity": 4, "batch": 2, "validation": 2, "validation_every": 1},
+    },
+    ["config.json", "progress.csv", "checkpoints/state.pkl", "champion.npz", "mazes.csv"],
 )
 RUNS["train-edhucat"] = (
     {**CURRICULUM, "algo": "a2c", "budget_steps": 400, "eval_every": 20, "tensorboard": False},

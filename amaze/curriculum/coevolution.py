@@ -533,22 +533,29 @@ class MazePopulation:
         return True
 
     def _new_maze(self, taken: set[str]) -> BatchMaze:
-        """A mutant of a member (ACCEL) or a fresh family maze, not one of ``taken``."""
+        """A mutant of a member (ACCEL) or a fresh family maze, not one of ``taken``.
+
+        A mutant that is already taken, or whose seed is reserved, is drawn
+        again (a few times, then a family maze is drawn until one is new).
+        """
         c, rng = self.config, self.rng
-        new = None
         for _ in range(_REDRAWS):
             if self.members and rng.random() < c.mutation_probability:
                 index = int(rng.choice(len(self.members), p=self.replay_distribution()))
                 parent = self.records[self.members[index]]
                 edits = int(rng.integers(1, c.edits + 1))
                 spec = self.genome.mutate(MazeSpec.from_string(parent.maze), rng, n=edits)
+                if spec.seed in self.reserved:
+                    continue
                 new = BatchMaze(spec.to_string(), parent=parent.id, origin="mutant")
             else:
                 new = BatchMaze(self._family_maze(), origin="family")
             if new.maze not in taken:
-                break
-        assert new is not None
-        return new
+                return new
+        while True:
+            new = BatchMaze(self._family_maze(), origin="family")
+            if new.maze not in taken:
+                return new
 
     def _family_maze(self) -> str:
         """The target's fields with a fresh seed and a side in ``[min_size, max_size]``."""

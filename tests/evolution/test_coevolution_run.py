@@ -169,3 +169,21 @@ def test_bad_options_are_one_error_line(tmp_path: Path, capsys: pytest.CaptureFi
 def test_the_rl_trainer_refuses_the_coevolution_regime() -> None:
     with pytest.raises(RLConfigError, match="'coevolution' is not run by this trainer"):
         TrainConfig.from_dict({"regime": "coevolution"})
+
+
+def test_neat_in_the_coevolution_regime(tmp_path: Path) -> None:
+    config = _write_config(tmp_path, algo="neat", max_generations=3, algorithm={})
+    out = tmp_path / "neat"
+    assert main(["--config", str(config), "--out", str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["algo"] == "neat" and summary["generations"] == 3
+    assert read_agent(out / "champion.npz")[1]["architecture"]["type"] != "mlp"
+
+
+def test_coevolution_fills_the_cmaes_options_it_is_not_given() -> None:
+    config = EvolveConfig.from_dict({"regime": "coevolution"})
+    assert config.algorithm == {"network": {"hidden": [16]}, "restarts": 16}
+    mine = EvolveConfig.from_dict({"regime": "coevolution", "algorithm": {"restarts": 2}})
+    assert mine.algorithm == {"network": {"hidden": [16]}, "restarts": 2}
+    assert EvolveConfig.from_dict({"regime": "coevolution", "algo": "neat"}).algorithm == {}
+    assert EvolveConfig.from_dict({}).algorithm == {}  # the direct regime keeps CMA-ES's defaults

@@ -233,3 +233,18 @@ def test_same_seed_same_population_and_a_pickle_goes_on_identically() -> None:
 def test_bad_options_are_named(options: dict, bad: str) -> None:
     with pytest.raises(CoevolutionError, match=bad):
         MazePopulationConfig.from_dict(options)
+
+
+def test_new_mazes_are_never_taken_even_when_mutants_run_out() -> None:
+    # a 5x5 target whose genome can only change the seed, size and start: a crowded space
+    population = MazePopulation(
+        "M1_5x5_U", MazePopulationConfig(capacity=64, batch=8, max_size=5), seed=0
+    )
+    for _ in range(40):
+        batch = population.propose()
+        strings = [b.maze for b in batch]
+        members = {r.maze for r in population.member_records()}
+        assert len(set(strings)) == len(strings)
+        assert not {b.maze for b in batch if b.member is None} & members
+        population.update(batch, [_result(0.5) for _ in batch])
+    assert len({r.maze for r in population.records}) == len(population.records)

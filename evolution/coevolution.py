@@ -49,7 +49,7 @@ resumed after a kill goes on bit-identically (seconds budgets aside).
 from __future__ import annotations
 
 import csv
-import os
+import io
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -69,9 +69,10 @@ from amaze.curriculum.genome import difficulty
 from amaze.curriculum.picture import save_population_png
 from amaze.curriculum.validation import reserved_seeds, validation_mazes
 from amaze.maze import rotations
+from amaze.maze.render import save_picture
 from amaze.maze.spec import MazeSpec
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
-from amaze.runs.folder import ProgressLog
+from amaze.runs.folder import ProgressLog, write_bytes
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
@@ -357,14 +358,11 @@ class EvolutionCoevolutionRun(GenerationLoop):
 
     def write_mazes_csv(self) -> Path:
         """``mazes.csv``: every maze that was ever a member, written atomically."""
-        path = self.out / "mazes.csv"
-        tmp = path.with_name(f".{path.name}.tmp")
-        with open(tmp, "w", newline="", encoding="utf-8") as handle:
-            writer = csv.DictWriter(handle, fieldnames=MAZES_CSV_FIELDS)
-            writer.writeheader()
-            writer.writerows(record.to_row() for record in self.state.mazes.records)
-        os.replace(tmp, path)
-        return path
+        text = io.StringIO(newline="")
+        writer = csv.DictWriter(text, fieldnames=MAZES_CSV_FIELDS)
+        writer.writeheader()
+        writer.writerows(record.to_row() for record in self.state.mazes.records)
+        return write_bytes(self.out / "mazes.csv", text.getvalue().encode("utf-8"))
 
 
 class _Clock:
@@ -427,9 +425,8 @@ def save_coevolution_plot(csv_path: Path, png_path: Path, target: str, title: st
     if title:
         fit.set_title(title)
     figure.tight_layout()
-    png_path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = png_path.with_name(f".{png_path.name}.tmp.png")
-    figure.savefig(tmp)
-    plt.close(figure)
-    os.replace(tmp, png_path)
+    try:
+        save_picture(figure, png_path)
+    finally:
+        plt.close(figure)
     return png_path

@@ -72,6 +72,7 @@ from typing import Any
 import numpy as np
 
 from amaze.maze import rotations
+from amaze.maze.render import save_picture
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from amaze.runs.config import RunConfig
 from amaze.runs.folder import ProgressLog
@@ -266,11 +267,10 @@ def plot_progress(csv_path: Path, png_path: Path, config: EvolveConfig) -> None:
     axes.grid(alpha=0.3)
     axes.legend(loc="lower right")
     figure.tight_layout()
-    png_path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = png_path.with_name(f".{png_path.name}.tmp.png")
-    figure.savefig(tmp)
-    plt.close(figure)
-    os.replace(tmp, png_path)
+    try:
+        save_picture(figure, png_path)
+    finally:
+        plt.close(figure)
 
 
 def evolve(

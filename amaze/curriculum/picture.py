@@ -19,7 +19,7 @@ from PIL import Image, ImageDraw
 
 from amaze.curriculum.coevolution import MazePopulation
 from amaze.curriculum.curators import StageRecord
-from amaze.maze.render import MIN_CELL_SIZE, load_font, render_maze
+from amaze.maze.render import MIN_CELL_SIZE, load_font, render_maze, save_picture
 from amaze.maze.spec import MazeSpec
 
 __all__ = [
@@ -113,12 +113,7 @@ def save_curriculum_png(
     records: Sequence[StageRecord], path: str | os.PathLike, title: str = ""
 ) -> Path:
     """Write :func:`render_curriculum` to ``path`` atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    render_curriculum(records, title).save(tmp)
-    os.replace(tmp, path)
-    return path
+    return save_picture(render_curriculum(records, title), path)
 
 
 def save_curriculum_progress(
@@ -174,13 +169,10 @@ def save_curriculum_progress(
     if title:
         top.set_title(title)
     figure.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    figure.savefig(tmp)
-    plt.close(figure)
-    os.replace(tmp, path)
-    return path
+    try:
+        return save_picture(figure, path)
+    finally:
+        plt.close(figure)
 
 
 #: Most members drawn by :func:`save_population_png` (the best scores first).
@@ -230,9 +222,4 @@ def save_population_png(
     population: MazePopulation, path: str | os.PathLike, title: str = ""
 ) -> Path:
     """Write :func:`render_population` to ``path`` atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    render_population(population, title).save(tmp)
-    os.replace(tmp, path)
-    return path
+    return save_picture(render_population(population, title), path)

@@ -503,6 +503,24 @@ def save_maze_png(
     return path
 
 
+def save_picture(picture: Any, path: str | os.PathLike) -> Path:
+    """Write a PIL image or a matplotlib figure to ``path`` as PNG, atomically.
+
+    The picture goes to a temporary file beside ``path`` first, then replaces
+    it, so a run killed while drawing never leaves a truncated picture.
+    Folders are created.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    if hasattr(picture, "savefig"):
+        picture.savefig(tmp, format="png")
+    else:
+        picture.save(tmp, format="PNG")
+    os.replace(tmp, path)
+    return path
+
+
 # -- grids of mazes -------------------------------------------------------------------
 
 #: Automatic cell sizes of grids aim at tiles of about this many pixels.

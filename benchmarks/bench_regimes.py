@@ -18,7 +18,7 @@ neat`` with its defaults):
 
 It prints, per regime, every seed's standard-suite success, R̄ and input
 recognition, and its champion's success and R̄ on 32 family mazes no regime
-trained or selected on (``evolution.coevolution.unseen_mazes``), then the
+trained or selected on (``amaze.curriculum.validation.unseen_mazes``), then the
 medians, and for each regime against ``dr`` a one-sided Mann-Whitney U test
 with its effect size (Cliff's delta, from -1 to 1). With a seconds budget
 runs are sequential (each has the whole machine); with ``--steps`` they
@@ -38,9 +38,9 @@ from pathlib import Path
 
 from scipy.stats import mannwhitneyu
 
+from amaze.curriculum.validation import unseen_mazes
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from evolution.agent_file import load_agent
-from evolution.coevolution import unseen_mazes
 from evolution.population import PopulationEvaluator
 
 ALGORITHM = {"network": {"hidden": [16]}, "restarts": 16}

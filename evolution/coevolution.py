@@ -18,9 +18,9 @@ neither the evaluation suite's nor any training maze's
 best agent on its batch is played on them (4 rotations each); the champion
 is the agent with the best validation fitness so far (the run's ``fitness``
 measure, the earliest on ties). The suite itself is never looked at before
-the end. ``summary.json`` also reports the champion on ``UNSEEN_MAZES``
+the end. ``summary.json`` also reports the champion on 32
 other family mazes no part of the run played (``unseen_success``,
-``unseen_reward``).
+``unseen_reward``; :func:`~amaze.curriculum.validation.unseen_mazes`).
 
 **Budget.** Env steps count every episode played, validation included;
 seconds everything the loop does. Where the time goes is reported in
@@ -48,8 +48,6 @@ resumed after a kill goes on bit-identically (seconds budgets aside).
 
 from __future__ import annotations
 
-import csv
-import io
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -60,17 +58,16 @@ from typing import Any, ClassVar
 import numpy as np
 
 from amaze.curriculum.coevolution import (
-    MAZES_CSV_FIELDS,
     MazePopulation,
     MazePopulationConfig,
     MazeResult,
+    mazes_csv,
 )
 from amaze.curriculum.genome import difficulty
 from amaze.curriculum.picture import save_population_png
-from amaze.curriculum.validation import reserved_seeds, validation_mazes
+from amaze.curriculum.validation import unseen_mazes, validation_mazes
 from amaze.maze import rotations
 from amaze.maze.render import save_picture
-from amaze.maze.spec import MazeSpec
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from amaze.runs.folder import ProgressLog, write_bytes
 from evolution import EvolutionConfigError
@@ -80,7 +77,7 @@ from evolution.config import CHECKPOINT_ALLOWLIST
 from evolution.generations import GenerationLoop
 from evolution.population import PopulationEvaluator
 
-__all__ = ["UNSEEN_MAZES", "EvolutionCoevolutionRun", "unseen_mazes"]
+__all__ = ["EvolutionCoevolutionRun", "save_coevolution_plot"]
 
 PROGRESS_FIELDS = (
     "generation", "steps", "seconds", "best", "mean", "champion", "eval_seconds",
@@ -89,17 +86,8 @@ PROGRESS_FIELDS = (
 )  # fmt: skip
 #: Version of the checkpoint layout; a checkpoint of another version is refused.
 CHECKPOINT_VERSION = 1
-#: Family mazes the champion is reported on at the end (never played before).
-UNSEEN_MAZES = 32
-#: The stream of the maze population's generator, apart from the algorithm's.
-_POPULATION_STREAM = 0xC0E
 #: Time categories of ``summary.json``'s ``time``.
 TIME_PARTS = ("evaluation", "validation", "breeding", "mazes", "logging_and_checkpoints")
-
-
-def unseen_mazes(target: str, seed: int, n: int = UNSEEN_MAZES) -> list[str]:
-    """``n`` family mazes of ``target`` drawn apart from the validation mazes of ``seed``."""
-    return validation_mazes(target, n, (1 << 32) + seed)
 
 
 @dataclass
@@ -157,14 +145,7 @@ class EvolutionCoevolutionRun(GenerationLoop):
     def start(self) -> None:
         c = self.config
         algorithm = make_algorithm(c.algo, c.algorithm, c.robot, c.seed)
-        taken = {MazeSpec.from_string(m).seed for m in self.validation_mazes}
-        taken |= {MazeSpec.from_string(m).seed for m in unseen_mazes(c.target, c.seed)}
-        population = MazePopulation(
-            c.target,
-            self.options,
-            seed=int(np.random.SeedSequence([c.seed, _POPULATION_STREAM]).generate_state(1)[0]),
-            reserved=reserved_seeds() | taken,
-        )
+        population = MazePopulation.for_run(c.target, self.options, c.seed, self.validation_mazes)
         self.state = _State(algorithm, population)
         self.validation  # noqa: B018
 
@@ -358,11 +339,8 @@ class EvolutionCoevolutionRun(GenerationLoop):
 
     def write_mazes_csv(self) -> Path:
         """``mazes.csv``: every maze that was ever a member, written atomically."""
-        text = io.StringIO(newline="")
-        writer = csv.DictWriter(text, fieldnames=MAZES_CSV_FIELDS)
-        writer.writeheader()
-        writer.writerows(record.to_row() for record in self.state.mazes.records)
-        return write_bytes(self.out / "mazes.csv", text.getvalue().encode("utf-8"))
+        text = mazes_csv(self.state.mazes.records)
+        return write_bytes(self.out / "mazes.csv", text.encode("utf-8"))
 
 
 class _Clock:

@@ -14,7 +14,6 @@ import copy
 from dataclasses import dataclass
 from typing import Any
 
-from amaze.curriculum.coevolution import CoevolutionError, MazePopulationConfig
 from amaze.curriculum.regimes import REGIMES
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.runs.checkpoint import Allowlist
@@ -86,11 +85,6 @@ class EvolveConfig(CurriculumConfig):
         help="the algorithm's options (CMAESConfig or NeatConfig fields)",
         command_line=False,
     )
-    coevolution: dict[str, Any] = option(
-        default_factory=dict,
-        help="the maze population's options in the coevolution regime (MazePopulationConfig)",
-        command_line=False,
-    )
 
     def validate(self) -> EvolveConfig:
         """Check every field; raise :class:`EvolutionConfigError` naming the bad value."""
@@ -118,7 +112,7 @@ class EvolveConfig(CurriculumConfig):
             )
         if self.is_curriculum:
             self._check_curriculum()
-        self._check_coevolution()
+        self._coevolution_defaults()
         if (self.budget_steps, self.budget_seconds, self.max_generations) == (None, None, None):
             raise EvolutionConfigError("a run needs a budget: budget_steps or budget_seconds")
         self.checkpoint_seconds = check_number(
@@ -144,28 +138,17 @@ class EvolveConfig(CurriculumConfig):
                 f" {regime} regime makes its own mazes, leading to target (--target)"
             )
 
-    def _check_coevolution(self) -> None:
-        """The coevolution regime's options are a valid maze population config; mazes its own."""
-        if not isinstance(self.coevolution, dict):
-            raise EvolutionConfigError(f"coevolution {self.coevolution!r} is not a JSON object")
+    def _coevolution_defaults(self) -> None:
+        """The coevolution regime makes its own mazes; CMA-ES options default to the regime's."""
         if self.regime != "coevolution":
-            if self.coevolution:
-                raise EvolutionConfigError(
-                    f"coevolution options {self.coevolution!r} are for the coevolution regime,"
-                    f" not {self.regime}"
-                )
             return
-        try:
-            MazePopulationConfig.from_dict(self.coevolution)
-        except CoevolutionError as problem:
-            raise EvolutionConfigError(str(problem)) from None
-        if self.algo == "cmaes" and isinstance(self.algorithm, dict):
-            self.algorithm = {**copy.deepcopy(COEVOLUTION_CMAES), **self.algorithm}
         if self.mazes != [PAPER_TRAINING_MAZE]:
             raise EvolutionConfigError(
                 f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"
                 " coevolution regime evolves its own, leading to target (--target)"
             )
+        if self.algo == "cmaes" and isinstance(self.algorithm, dict):
+            self.algorithm = {**copy.deepcopy(COEVOLUTION_CMAES), **self.algorithm}
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:

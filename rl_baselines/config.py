@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from amaze.curriculum.regimes import branch_allowance
+from amaze.curriculum.regimes import REGIMES, branch_allowance
 from amaze.runs.config import option
 from amaze.runs.curriculum import CurriculumConfig
 from amaze.validation import check_integer, check_number
@@ -44,6 +44,7 @@ class TrainConfig(CurriculumConfig):
 
     error = RLConfigError
     options_field = "hyperparameters"
+    supported_regimes = REGIMES  # coevolution included (rl_baselines.coevolution)
 
     algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
     budget_steps: int = option(3_000_000, "environment steps")
@@ -71,7 +72,21 @@ class TrainConfig(CurriculumConfig):
         if not isinstance(self.hyperparameters, dict):
             raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
         check_hyperparameters(self.algo, self.hyperparameters)
+        if self.regime == "coevolution":
+            self._coevolution_batch()
         return self
+
+    def _coevolution_batch(self) -> None:
+        """One environment per rotation of each batch maze: ``batch`` is ``n_envs / 4``."""
+        batch = self.coevolution.get("batch", self.n_envs // 4)
+        if not isinstance(batch, int) or batch * 4 != self.n_envs:
+            raise RLConfigError(
+                f"coevolution batch {batch!r} needs n_envs = 4 x batch (one environment per"
+                f" rotation of each maze), not {self.n_envs}"
+            )
+        self.coevolution = {**self.coevolution, "batch": batch}
+        if self.coevolution.get("capacity", 64) < batch:
+            self.coevolution["capacity"] = batch
 
 
 #: Hyperparameters the trainer sets itself.

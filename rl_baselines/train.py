@@ -187,11 +187,16 @@ class SB3Run(Run):
 
     @classmethod
     def run_class_for(cls, config: RunConfig) -> type[Run]:
-        """:class:`SB3CurriculumRun` for the curriculum regimes, this class for direct."""
+        """:class:`SB3CurriculumRun` for the curriculum regimes, :class:`SB3CoevolutionRun`
+        for coevolution, this class for direct."""
         if getattr(config, "is_curriculum", False):
             from rl_baselines.curriculum import SB3CurriculumRun
 
             return SB3CurriculumRun
+        if getattr(config, "regime", None) == "coevolution":
+            from rl_baselines.coevolution import SB3CoevolutionRun
+
+            return SB3CoevolutionRun
         return cls
 
     def start(self) -> None:

@@ -5,6 +5,7 @@
     python tools/fuzz_resume.py evolve-edhucat 200
     python tools/fuzz_resume.py train-edhucat 100
     python tools/fuzz_resume.py evolve-coevolution 200
+    python tools/fuzz_resume.py train-coevolution 100
 
 A small run of the trainer is made once, in a temporary folder. Each try copies
 it (a curriculum run without its last branch's result, as if killed while
@@ -92,6 +93,18 @@ RUNS["evolve-coevolution"] = (
         "coevolution": {"capacity": 4, "batch": 2, "validation": 2, "validation_every": 1},
     },
     ["config.json", "progress.csv", "checkpoints/state.pkl", "champion.npz", "mazes.csv"],
+)
+RUNS["train-coevolution"] = (
+    {
+        "regime": "coevolution",
+        "target": "M0_6x6_C1",
+        "algo": "a2c",
+        "budget_steps": 40,
+        "eval_every": 20,
+        "tensorboard": False,
+        "coevolution": {"validation": 2, "validation_every": 1},
+    },
+    ["config.json", "progress.csv", "checkpoints/state.pkl", "checkpoints/model-2.zip"],
 )
 RUNS["train-edhucat"] = (
     {**CURRICULUM, "algo": "a2c", "budget_steps": 400, "eval_every": 20, "tensorboard": False},

@@ -63,7 +63,9 @@ state), so a run resumed from a checkpoint goes on bit-identically.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -72,6 +74,7 @@ from typing import Any
 import numpy as np
 
 from amaze.curriculum.genome import SEED_RANGE, DifficultyProfile, MazeGenome
+from amaze.curriculum.validation import reserved_seeds, unseen_mazes
 from amaze.errors import AmazeError
 from amaze.maze.maze import Maze, as_mazes, rotations
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
@@ -86,6 +89,7 @@ __all__ = [
     "MazePopulationConfig",
     "MazeRecord",
     "MazeResult",
+    "mazes_csv",
     "rank_weights",
     "replay_distribution",
     "staleness_weights",
@@ -104,6 +108,8 @@ DESCRIPTOR_SCALES: dict[str, float] = {
 }
 #: Draws of a new maze before settling for one already in the batch or population.
 _REDRAWS = 8
+#: The stream of a run's maze population, apart from its algorithm's.
+_POPULATION_STREAM = 0xC0E
 
 
 class CoevolutionError(AmazeError):
@@ -403,6 +409,22 @@ class MazePopulation:
         self.rng = np.random.default_rng(check_integer("seed", self.seed, minimum=0))
         self._generated: dict[str, list[Maze]] = {}
 
+    @classmethod
+    def for_run(
+        cls, target: str, config: MazePopulationConfig, run_seed: int, validation: Iterable[str]
+    ) -> MazePopulation:
+        """The population of a run: its own random stream, seeds apart from every held-out maze.
+
+        The generator is seeded from ``run_seed`` on a stream of its own (the
+        run's algorithm draws from others); fresh seeds avoid the evaluation
+        suite's, the ``validation`` mazes' and the run's unseen mazes'
+        (:func:`~amaze.curriculum.validation.unseen_mazes`).
+        """
+        held_out = [*validation, *unseen_mazes(target, run_seed)]
+        seeds = {MazeSpec.from_string(maze).seed for maze in held_out}
+        stream = np.random.SeedSequence([run_seed, _POPULATION_STREAM]).generate_state(1)[0]
+        return cls(target, config, seed=int(stream), reserved=reserved_seeds() | seeds)
+
     # -- reading --------------------------------------------------------------------
 
     def member_records(self) -> list[MazeRecord]:
@@ -576,6 +598,10 @@ class MazePopulation:
         return state
 
 
-def records_rows(records: Iterable[MazeRecord]) -> list[dict[str, Any]]:
-    """``mazes.csv``'s rows for ``records``."""
-    return [record.to_row() for record in records]
+def mazes_csv(records: Iterable[MazeRecord]) -> str:
+    """The text of ``mazes.csv``: a header of :data:`MAZES_CSV_FIELDS`, a row per record."""
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=MAZES_CSV_FIELDS)
+    writer.writeheader()
+    writer.writerows(record.to_row() for record in records)
+    return text.getvalue()

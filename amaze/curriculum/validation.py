@@ -20,7 +20,10 @@ from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, s
 from amaze.maze.spec import MazeSpec
 from amaze.validation import check_integer
 
-__all__ = ["reserved_seeds", "validation_mazes"]
+__all__ = ["UNSEEN_MAZES", "reserved_seeds", "unseen_mazes", "validation_mazes"]
+
+#: Family mazes a run reports its final agent on (never played before the end).
+UNSEEN_MAZES = 32
 
 
 @lru_cache(maxsize=1)
@@ -46,3 +49,13 @@ def validation_mazes(target: str | MazeSpec, n: int, seed: int) -> list[str]:
         if drawn not in reserved and drawn not in seeds:
             seeds.append(drawn)
     return [dataclasses.replace(spec, seed=s).to_string() for s in seeds]
+
+
+def unseen_mazes(target: str | MazeSpec, seed: int, n: int = UNSEEN_MAZES) -> list[str]:
+    """``n`` family mazes of ``target`` drawn apart from :func:`validation_mazes` of ``seed``.
+
+    A run that selects on its validation mazes reports its final agent on
+    these: mazes of the same family that no part of the run trained or
+    selected on.
+    """
+    return validation_mazes(target, n, (1 << 32) + check_integer("seed", seed, minimum=0))

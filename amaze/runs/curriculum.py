@@ -70,6 +70,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from amaze.agents.trajectories import save_trajectory_png
+from amaze.curriculum.coevolution import CoevolutionError, MazePopulationConfig
 from amaze.curriculum.curators import (
     Candidate,
     Curator,
@@ -172,6 +173,11 @@ class CurriculumConfig(RunConfig):
     replay: str | None = option(
         None, "the run whose recorded decisions this run replays", command_line=False
     )
+    coevolution: dict[str, Any] = option(
+        default_factory=dict,
+        help="the maze population's options in the coevolution regime (MazePopulationConfig)",
+        command_line=False,
+    )
 
     @property
     def is_curriculum(self) -> bool:
@@ -190,6 +196,7 @@ class CurriculumConfig(RunConfig):
             self.target = MazeSpec.from_string(str(self.target)).to_string()
         except ValueError as problem:
             raise self.error(f"target {self.target!r}: {problem}") from None
+        self._check_coevolution()
         if not self.is_curriculum:
             for name in ("curator", "stages", "branches", "replay"):
                 if getattr(self, name) is not None:
@@ -225,6 +232,22 @@ class CurriculumConfig(RunConfig):
         if self.replay is not None and not isinstance(self.replay, str):
             raise self.error(f"replay {self.replay!r} is not a run folder")
         return self
+
+    def _check_coevolution(self) -> None:
+        """``coevolution`` is a valid maze population config, and only in that regime."""
+        if not isinstance(self.coevolution, dict):
+            raise self.error(f"coevolution {self.coevolution!r} is not a JSON object")
+        if self.regime != "coevolution":
+            if self.coevolution:
+                raise self.error(
+                    f"coevolution options {self.coevolution!r} are for the coevolution regime,"
+                    f" not {self.regime}"
+                )
+            return
+        try:
+            MazePopulationConfig.from_dict(self.coevolution)
+        except CoevolutionError as problem:
+            raise self.error(str(problem)) from None
 
     def curator_context(self) -> CuratorContext:
         """What the curator is built from."""

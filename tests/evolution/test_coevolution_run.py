@@ -22,8 +22,6 @@ from evolution.agent_file import load_agent, read_agent
 from evolution.cli import main
 from evolution.coevolution import EvolutionCoevolutionRun
 from evolution.run import EvolutionRun, EvolveConfig
-from rl_baselines import RLConfigError
-from rl_baselines.config import TrainConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 #: A tiny coevolution run: small populations of agents and mazes, a checkpoint every generation.
@@ -164,11 +162,6 @@ def test_bad_options_are_one_error_line(tmp_path: Path, capsys: pytest.CaptureFi
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "batchsize" in err[0]
     assert not (tmp_path / "o").exists()
-
-
-def test_the_rl_trainer_refuses_the_coevolution_regime() -> None:
-    with pytest.raises(RLConfigError, match="'coevolution' is not run by this trainer"):
-        TrainConfig.from_dict({"regime": "coevolution"})
 
 
 def test_neat_in_the_coevolution_regime(tmp_path: Path) -> None:

@@ -270,6 +270,8 @@ def test_resume_of_a_finished_run_redoes_nothing(tmp_path: Path, finished: Path)
         ({"target": "M5_8x8_Q"}, "target 'M5_8x8_Q'"),
         ({"curator_options": [1]}, "curator_options"),
         ({"regime": "curricular"}, "regime 'curricular'"),
+        ({"regime": "coevolution"}, "regime 'coevolution' is not run by this trainer"),
+        ({"coevolution": {"batch": 2}}, "coevolution options .* are for the coevolution regime"),
     ],
 )
 def test_bad_regime_fields_are_refused_naming_the_value(changes: dict, message: str) -> None:

@@ -1,0 +1,318 @@
+"""Reinforcement learning in the ``coevolution`` regime: an SB3 agent and a maze population.
+
+``amaze-train --algo ppo --regime coevolution --budget-steps 300000 --out runs/co``
+trains one SB3 model on a :class:`~amaze.curriculum.coevolution.MazePopulation`
+that evolves beside it, in *rounds*:
+
+1. the population proposes a batch of ``n_envs / 4`` mazes (one environment
+   per rotation; ``coevolution.batch`` defaults to that and must match it);
+2. the model learns one rollout (``n_steps x n_envs`` env steps) on them;
+3. the agent (acting deterministically) plays the batch's rotations once:
+   its results score each maze (``learnability`` uses the share of the 4
+   rotations it solved, as the single-agent score of Rutherford et al.'s
+   SFL; ``regret`` the best R̄ it ever had there minus its R̄ now) and the
+   population admits, replays and retires mazes as in the evolution regime;
+4. every ``coevolution.validation_every`` rounds the agent plays the
+   validation mazes (16 family mazes, never the suite's seeds); the best
+   there so far is the champion (``champion.zip``), the run's final agent,
+   which ``summary.json`` also reports on 32 unseen family mazes.
+
+The budget is ``budget_steps`` training steps (spent in whole rollouts, as in
+the other regimes); the steps of the scoring and validation episodes are
+reported apart (``scoring_steps``, ``validation_steps``).
+
+**Run folder**: ``config.json``; ``progress.csv`` (a row per round);
+``checkpoints/model-<round>.zip`` and ``checkpoints/state.pkl`` (the maze
+population with its generator, counters and champion, naming the model file;
+the model is written first, the state last, each atomically, so a kill
+between the two leaves the previous pair); ``champion.zip`` +
+``champion.json``; ``mazes.csv``; ``population.png``; ``summary.json``;
+``trajectories/``; ``tensorboard/`` (SB3's losses and returns, and
+``coevolution/validation_success``, ``coevolution/population_difficulty``...).
+A resumed run continues from the last checkpoint with the population as it
+was; SB3 does not save its random state, so it is a faithful continuation,
+not a bit-identical replay.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+from amaze.agents.engine import BatchEngine
+from amaze.curriculum.coevolution import (
+    MazePopulation,
+    MazePopulationConfig,
+    MazeResult,
+    mazes_csv,
+)
+from amaze.curriculum.picture import save_population_png
+from amaze.curriculum.validation import unseen_mazes, validation_mazes
+from amaze.evaluation.policy import EpisodeResults, run_episodes
+from amaze.maze import Maze, as_mazes, rotations
+from amaze.runs.checkpoint import Allowlist, read_checkpoint, write_checkpoint
+from amaze.runs.folder import write_bytes
+from amaze.runs.lifecycle import Run
+from rl_baselines import RLConfigError
+from rl_baselines.agent import SB3Agent, load_sb3_model
+from rl_baselines.config import TrainConfig
+from rl_baselines.learner import new_sb3_model
+from rl_baselines.vec_env import SB3VecEnv
+
+__all__ = ["SB3CoevolutionRun"]
+
+PROGRESS_FIELDS = (
+    "round", "steps", "seconds", "batch_success", "validation", "validation_success",
+    "champion_success", "members", "admitted", "batch_difficulty", "population_difficulty",
+)  # fmt: skip
+#: What ``state.pkl`` may name: the run state and the maze population's classes (and numpy's).
+CHECKPOINT_ALLOWLIST = Allowlist.of(
+    names=("rl_baselines.coevolution:_State",), class_prefixes=("amaze.",)
+)
+CHECKPOINT_VERSION = 1
+
+
+@dataclass
+class _State:
+    """The run state of ``checkpoints/state.pkl`` (the model is in ``model_file``)."""
+
+    mazes: MazePopulation
+    round: int = 0
+    steps: int = 0
+    seconds: float = 0.0
+    scoring_steps: int = 0
+    validation_steps: int = 0
+    champion_fitness: float = -np.inf
+    champion_success: float = 0.0
+    champion_round: int = 0
+    model_file: str = ""
+    version: int = CHECKPOINT_VERSION
+
+
+def _play(mazes: list[Maze], agent: SB3Agent) -> EpisodeResults:
+    """One episode of ``agent`` in each of ``mazes``."""
+    return run_episodes(BatchEngine(mazes, agent.robot, len(mazes)), agent)
+
+
+class SB3CoevolutionRun(Run):
+    """Rounds of one rollout on a batch of a co-evolving maze population."""
+
+    config_class = TrainConfig
+    progress_fields = PROGRESS_FIELDS
+    position_field = "round"
+    checkpoint_files = ("state.pkl",)
+    outputs: ClassVar[tuple[str, ...]] = (
+        "champion.zip", "summary.json", "progress.csv", "mazes.csv", "population.png",
+        "tensorboard/",
+    )  # fmt: skip
+    config: TrainConfig
+
+    def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
+        super().__init__(out, config)
+        torch.set_num_threads(1)
+        self.model: BaseAlgorithm | None = None
+        self.state: _State
+        self.started = time.monotonic()
+        self.seconds_before = 0.0
+
+    @cached_property
+    def options(self) -> MazePopulationConfig:
+        return MazePopulationConfig.from_dict(self.config.coevolution)
+
+    @cached_property
+    def validation(self) -> list[Maze]:
+        """The validation mazes in their rotations (the champion is chosen there)."""
+        c = self.config
+        return as_mazes(rotations(validation_mazes(c.target, self.options.validation, c.seed)))
+
+    def seconds(self) -> float:
+        return self.seconds_before + (time.monotonic() - self.started)
+
+    def _env(self, mazes: list[Maze]) -> SB3VecEnv:
+        c = self.config
+        return SB3VecEnv(mazes, c.robot, c.n_envs, c.seed)
+
+    def _tensorboard_dir(self) -> str | None:
+        return str(self.out / "tensorboard") if self.config.tensorboard else None
+
+    # -- the lifecycle's hooks --------------------------------------------------------
+
+    def start(self) -> None:
+        c = self.config
+        validation = validation_mazes(c.target, self.options.validation, c.seed)
+        self.state = _State(MazePopulation.for_run(c.target, self.options, c.seed, validation))
+        first = as_mazes(rotations(c.target)) * (c.n_envs // 4)  # replaced every round
+        self.model = new_sb3_model(
+            c.algo, c.robot, self._env(first), c.seed, c.hyperparameters, self._tensorboard_dir()
+        )
+
+    def restore(self) -> int | None:
+        path = self.checkpoints / "state.pkl"
+        if not path.exists():
+            return None
+        state = read_checkpoint(path, CHECKPOINT_ALLOWLIST, RLConfigError, expected=_State)
+        if state.version != CHECKPOINT_VERSION:
+            raise RLConfigError(f"checkpoint {str(path)!r} is of version {state.version!r}")
+        model_file = self.checkpoints / state.model_file
+        if not state.model_file or model_file.parent != self.checkpoints:
+            raise RLConfigError(f"checkpoint {str(path)!r} names no model file of its folder")
+        if not model_file.exists():
+            raise RLConfigError(f"checkpoint file {str(model_file)!r} is missing")
+        first = as_mazes(rotations(self.config.target)) * (self.config.n_envs // 4)
+        self.model = load_sb3_model(
+            model_file,
+            self.config.algo,
+            self.config.robot,
+            env=self._env(first),
+            tensorboard_log=self._tensorboard_dir(),
+        )
+        self.model.num_timesteps = state.steps
+        self.state = state
+        self.seconds_before = state.seconds
+        self.started = time.monotonic()
+        return state.round
+
+    def train(self, progress_bar: bool) -> None:
+        """Rounds until the budget is spent, checkpointing every ``eval_every`` steps."""
+        c, s = self.config, self.state
+        last_checkpoint = s.steps
+        while s.steps < c.budget_steps:
+            row = self.round()
+            self.progress.append(row)
+            if s.steps - last_checkpoint >= c.eval_every or s.steps >= c.budget_steps:
+                self.save_checkpoint()
+                last_checkpoint = s.steps
+        if s.round == 0 or not (self.out / "champion.zip").exists():
+            raise RLConfigError("the run played no round (budget too small?)")
+
+    def final_agent(self) -> SB3Agent:
+        return SB3Agent.load(self.out / "champion.zip")
+
+    def figures(self) -> dict[str, Any]:
+        c, s = self.config, self.state
+        agent = self.final_agent()
+        unseen = _play(as_mazes(rotations(unseen_mazes(c.target, c.seed))), agent)
+        members = s.mazes.member_records()
+        return {
+            "algo": c.algo,
+            "regime": c.regime,
+            "robot": c.robot,
+            "seed": c.seed,
+            "target": c.target,
+            "rounds": s.round,
+            "env_steps": s.steps,
+            "scoring_steps": s.scoring_steps,
+            "validation_steps": s.validation_steps,
+            "seconds": round(self.seconds(), 3),
+            "budget_steps": c.budget_steps,
+            "champion_validation_reward": s.champion_fitness,
+            "champion_validation_success": s.champion_success,
+            "champion_round": s.champion_round,
+            "unseen_success": float(unseen.success.mean()),
+            "unseen_reward": float(unseen.paper_reward.mean()),
+            "mazes_ever": len(s.mazes.records),
+            "members": len(members),
+            "coevolution": self.options.to_dict(),
+        }
+
+    def trajectory_mazes(self) -> list[tuple[str, str]]:
+        """The champion in the target's 4 rotations."""
+        return [(f"target-rotation-{i}", m) for i, m in enumerate(rotations(self.config.target))]
+
+    def extra_outputs(self) -> None:
+        s = self.state
+        self.write_mazes_csv()
+        title = f"maze population after {s.round} rounds ({len(s.mazes.records)} ever)"
+        save_population_png(s.mazes, self.out / "population.png", title)
+
+    # -- one round ------------------------------------------------------------------
+
+    def round(self) -> dict[str, Any]:
+        """Learn one rollout on a batch, score its mazes, validate when due."""
+        c, s, model = self.config, self.state, self.model
+        assert model is not None
+        batch = s.mazes.propose()
+        mazes = [rotated for item in batch for rotated in s.mazes.generated(item.maze)]
+        model.set_env(self._env(mazes))
+        rollout = int(model.n_steps) * c.n_envs
+        model.learn(total_timesteps=rollout, reset_num_timesteps=False, tb_log_name="coevolution")
+        s.steps = int(model.num_timesteps)
+        agent = SB3Agent(model, c.robot, c.algo)
+        played = _play(mazes, agent)
+        s.scoring_steps += int(played.steps.sum())
+        shape = (len(batch), 4)
+        success = played.success.reshape(shape).astype(float)
+        reward = played.paper_reward.reshape(shape)
+        report = s.mazes.update(
+            batch, [MazeResult.of(success[b][None], reward[b][None]) for b in range(len(batch))]
+        )
+        s.round += 1
+        validation = validation_success = float("nan")
+        if (s.round - 1) % self.options.validation_every == 0:
+            checked = _play(self.validation, agent)
+            s.validation_steps += int(checked.steps.sum())
+            validation = float(checked.paper_reward.mean())
+            validation_success = float(checked.success.mean())
+            if validation > s.champion_fitness:
+                s.champion_fitness, s.champion_success = validation, validation_success
+                s.champion_round = s.round
+                agent.save(self.out / "champion.zip")
+        members = s.mazes.member_records()
+        difficulty = float(np.mean([r.difficulty for r in members])) if members else 0.0
+        logger = model.logger
+        for key, value in (
+            ("validation_success", validation_success),
+            ("champion_success", s.champion_success),
+            ("batch_success", float(success.mean())),
+            ("batch_difficulty", report.batch_difficulty),
+            ("population_difficulty", difficulty),
+            ("members", len(members)),
+        ):
+            if not np.isnan(value):
+                logger.record(f"coevolution/{key}", value)
+        logger.dump(s.steps)
+        s.seconds = self.seconds()
+        return {
+            "round": s.round,
+            "steps": s.steps,
+            "seconds": round(s.seconds, 3),
+            "batch_success": float(success.mean()),
+            "validation": validation,
+            "validation_success": validation_success,
+            "champion_success": s.champion_success,
+            "members": len(members),
+            "admitted": report.admitted,
+            "batch_difficulty": round(report.batch_difficulty, 4),
+            "population_difficulty": round(difficulty, 4),
+        }
+
+    # -- checkpoints ------------------------------------------------------------------
+
+    def save_checkpoint(self) -> None:
+        """The model as ``model-<round>.zip``, then the state naming it; older models go."""
+        s, model = self.state, self.model
+        assert model is not None
+        self.checkpoints.mkdir(parents=True, exist_ok=True)
+        name = f"model-{s.round}.zip"
+        tmp = self.checkpoints / f".{name}.tmp.zip"
+        model.save(tmp)
+        os.replace(tmp, self.checkpoints / name)
+        s.model_file, s.seconds = name, self.seconds()
+        write_checkpoint(self.checkpoints / "state.pkl", s)
+        for old in self.checkpoints.glob("model-*.zip"):
+            if old.name != name:
+                old.unlink()
+        self.write_mazes_csv()
+
+    def write_mazes_csv(self) -> Path:
+        """``mazes.csv``: every maze that was ever a member, written atomically."""
+        text = mazes_csv(self.state.mazes.records)
+        return write_bytes(self.out / "mazes.csv", text.encode("utf-8"))

@@ -1,0 +1,99 @@
+"""``amaze-train`` in the coevolution regime: rounds on a co-evolving maze population."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
+from rl_baselines import RLConfigError
+from rl_baselines.cli import main
+from rl_baselines.coevolution import SB3CoevolutionRun
+from rl_baselines.train import SB3Run, TrainConfig
+
+#: A2C rounds of 5 x 4 = 20 steps on one maze, validated every 2 rounds, checkpoints every round.
+ARGS = ["--algo", "a2c", "--regime", "coevolution", "--budget-steps", "120"]
+ARGS += ["--eval-every", "20", "--no-progress"]
+
+
+def _rows(out: Path, name: str) -> list[dict[str, str]]:
+    with (out / name).open(newline="") as stream:
+        return list(csv.DictReader(stream))
+
+
+def _config(folder: Path) -> Path:
+    path = folder / "config-in.json"
+    path.write_text(json.dumps({"coevolution": {"validation": 2, "validation_every": 2}}))
+    return path
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("coevolution")
+    out = folder / "run"
+    assert main([*ARGS, "--config", str(_config(folder)), "--out", str(out)]) == 0
+    return out
+
+
+def test_a_coevolution_run_writes_its_folder(finished: Path) -> None:
+    for name in ("progress.csv", "mazes.csv", "population.png", "champion.zip", "summary.json"):
+        assert (finished / name).stat().st_size > 0, name
+    assert any((finished / "tensorboard").rglob("events.out.tfevents.*"))
+    rows = _rows(finished, "progress.csv")
+    assert [int(r["round"]) for r in rows] == list(range(1, 7))
+    assert [int(r["steps"]) for r in rows] == [20 * k for k in range(1, 7)]
+    assert [r["validation"] != "nan" for r in rows] == [True, False] * 3
+    summary = json.loads((finished / "summary.json").read_text())
+    assert summary["regime"] == "coevolution" and summary["rounds"] == 6
+    assert summary["env_steps"] == 120 and summary["validation_steps"] > 0
+    assert 0 <= summary["unseen_success"] <= 1
+    config = json.loads((finished / "config.json").read_text())
+    assert config["coevolution"]["batch"] == 1  # n_envs 4: one maze per round
+    mazes = _rows(finished, "mazes.csv")
+    assert not mazes or list(mazes[0]) == MAZES_CSV_FIELDS
+    assert [p.name for p in (finished / "checkpoints").glob("model-*.zip")] == ["model-6.zip"]
+
+
+def test_a_resumed_run_goes_on_with_its_population(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    short = [*ARGS[:5], "60", *ARGS[6:]]  # 3 rounds
+    assert main([*short, "--config", str(_config(tmp_path)), "--out", str(out)]) == 0
+    before = _rows(out, "mazes.csv")
+    # as if killed after round 3's checkpoint, in a run of 6 rounds
+    (out / "summary.json").unlink()
+    config = json.loads((out / "config.json").read_text())
+    (out / "config.json").write_text(json.dumps({**config, "budget_steps": 120}))
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    assert [int(r["round"]) for r in _rows(out, "progress.csv")] == list(range(1, 7))
+    after = _rows(out, "mazes.csv")
+    kept = ("id", "maze", "origin", "parent", "birth")
+    assert [{k: r[k] for k in kept} for r in after[: len(before)]] == [
+        {k: r[k] for k in kept} for r in before
+    ]
+    assert json.loads((out / "summary.json").read_text())["rounds"] == 6
+
+
+def test_the_regime_chooses_the_run_class() -> None:
+    config = TrainConfig.from_dict({"regime": "coevolution"})
+    assert SB3Run.run_class_for(config) is SB3CoevolutionRun
+
+
+@pytest.mark.parametrize(
+    ("changes", "bad"),
+    [
+        ({"coevolution": {"batch": 2}}, "coevolution batch 2 needs n_envs = 4 x batch"),
+        ({"n_envs": 8, "coevolution": {"batch": 1}}, "not 8"),
+        ({"coevolution": {"score": "fun"}}, "score 'fun'"),
+    ],
+)
+def test_coevolution_config_refusals(changes: dict, bad: str) -> None:
+    with pytest.raises(RLConfigError, match=bad):
+        TrainConfig.from_dict({"regime": "coevolution", **changes})
+
+
+def test_eight_environments_take_batches_of_two_mazes() -> None:
+    config = TrainConfig.from_dict({"regime": "coevolution", "n_envs": 8})
+    assert config.coevolution == {"batch": 2}

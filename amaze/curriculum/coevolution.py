@@ -460,9 +460,10 @@ class MazePopulation:
             n_replay = int(rng.binomial(c.batch, c.replay_probability))
         batch: list[BatchMaze] = []
         if n_replay:
-            chosen = rng.choice(
-                len(self.members), size=n_replay, replace=False, p=self.replay_distribution()
-            )
+            weights = self.replay_distribution()
+            # a weight may underflow to 0 (huge populations, tiny temperatures)
+            n_replay = min(n_replay, int(np.count_nonzero(weights)))
+            chosen = rng.choice(len(self.members), size=n_replay, replace=False, p=weights)
             for index in chosen:
                 record = self.records[self.members[int(index)]]
                 batch.append(BatchMaze(record.maze, member=record.id))

@@ -248,3 +248,11 @@ def test_new_mazes_are_never_taken_even_when_mutants_run_out() -> None:
         assert not {b.maze for b in batch if b.member is None} & members
         population.update(batch, [_result(0.5) for _ in batch])
     assert len({r.maze for r in population.records}) == len(population.records)
+
+
+def test_replay_copes_with_weights_that_underflow() -> None:
+    population = _population(capacity=8, batch=8, temperature=0.001, staleness=0.0)
+    _fill(population, replay_probability=1.0)
+    assert np.count_nonzero(population.replay_distribution()) < 8
+    batch = population.propose()
+    assert len(batch) == 8 and len({b.maze for b in batch}) == 8

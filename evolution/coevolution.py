@@ -387,7 +387,9 @@ def save_coevolution_plot(csv_path: Path, png_path: Path, target: str, title: st
     fit.plot(steps, column("mean"), ":", label="mean on the batch")
     fit.plot(steps, column("best"), "-", lw=0.8, label="best on the batch")
     fit.set_ylabel("fitness")
-    valid.plot(steps, column("validation_success"), "-", lw=0.6, alpha=0.6,
+    checked = np.array(column("validation_success"))
+    validated = ~np.isnan(checked)  # only every validation_every-th generation is validated
+    valid.plot(steps[validated], checked[validated], "-", lw=0.6, alpha=0.6,
                label="generation's best")  # fmt: skip
     valid.plot(steps, column("champion_success"), "-", lw=1.6, label="champion")
     valid.set_ylabel("validation success")

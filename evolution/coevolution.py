@@ -161,7 +161,6 @@ class EvolutionCoevolutionRun(GenerationLoop):
                 f" not {CHECKPOINT_VERSION}"
             )
         self.state = state
-        self.champion_fitness = state.champion_fitness
         self.validation  # noqa: B018
         return state.generation
 
@@ -201,7 +200,7 @@ class EvolutionCoevolutionRun(GenerationLoop):
             "time": self.time_breakdown(),
             "mazes_ever": len(records),
             "members": len(s.mazes.members),
-            "population_difficulty": _mean([r.difficulty for r in s.mazes.member_records()]),
+            "population_difficulty": s.mazes.mean_difficulty(),
             "target_difficulty": difficulty(c.target),
             "coevolution": self.options.to_dict(),
             "budget_steps": c.budget_steps,
@@ -275,14 +274,12 @@ class EvolutionCoevolutionRun(GenerationLoop):
                 s.champion_fitness, s.champion_success = validation, validation_success
                 s.champion_generation = s.generation
                 s.champion = algorithm.candidate_arrays(candidates[top[first]])
-                self.champion_fitness = validation
                 self.save_champion()
             s.steps += checked.env_steps
             s.validation_steps += checked.env_steps
             clock.lap("validation")
         s.steps += result.env_steps
         s.eval_seconds += result.seconds
-        members = s.mazes.member_records()
         diversity = s.mazes.diversity()
         clock.lap("mazes")
         s.seconds += clock.total
@@ -297,10 +294,10 @@ class EvolutionCoevolutionRun(GenerationLoop):
             "validation": validation,
             "validation_success": validation_success,
             "champion_success": s.champion_success,
-            "members": len(members),
+            "members": len(s.mazes.members),
             "admitted": report.admitted,
             "batch_difficulty": round(report.batch_difficulty, 4),
-            "population_difficulty": round(_mean([r.difficulty for r in members]), 4),
+            "population_difficulty": round(s.mazes.mean_difficulty(), 4),
             "diversity": round(diversity, 4),
         }
 
@@ -358,10 +355,6 @@ class _Clock:
     @property
     def total(self) -> float:
         return self.last - self.started
-
-
-def _mean(values: list[float]) -> float:
-    return float(np.mean(values)) if values else 0.0
 
 
 def save_coevolution_plot(csv_path: Path, png_path: Path, target: str, title: str = "") -> Path:

@@ -17,8 +17,6 @@ import time
 from abc import abstractmethod
 from typing import Any
 
-import numpy as np
-
 from amaze.runs.lifecycle import Run
 from evolution.config import EvolveConfig
 
@@ -41,7 +39,6 @@ class GenerationLoop(Run):
         super().__init__(out, config)
         self.checkpoint = self.checkpoints / self.checkpoint_files[0]
         self.state: Any  # set by start() or restore()
-        self.champion_fitness = -np.inf
 
     @abstractmethod
     def generation(self) -> dict[str, Any]:

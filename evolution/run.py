@@ -110,6 +110,10 @@ class EvolutionRun(GenerationLoop):
     outputs = ("champion.npz", "summary.json", "progress.csv", "fitness.png")
     state: _State
 
+    def __init__(self, out: str | os.PathLike, config: EvolveConfig) -> None:
+        super().__init__(out, config)
+        self.champion_fitness = -np.inf  # of the algorithm's champion, on the training mazes
+
     @cached_property
     def backend(self) -> EvaluationBackend:
         """Where populations are played: the training mazes in their rotations."""

@@ -140,6 +140,10 @@ class SB3CoevolutionRun(Run):
         c = self.config
         return SB3VecEnv(mazes, c.robot, c.n_envs, c.seed)
 
+    def _first_env(self) -> SB3VecEnv:
+        """The environment a model is built with: the target's rotations (replaced every round)."""
+        return self._env(as_mazes(rotations(self.config.target)) * (self.config.n_envs // 4))
+
     def _tensorboard_dir(self) -> str | None:
         return str(self.out / "tensorboard") if self.config.tensorboard else None
 
@@ -149,9 +153,8 @@ class SB3CoevolutionRun(Run):
         c = self.config
         validation = validation_mazes(c.target, self.options.validation, c.seed)
         self.state = _State(MazePopulation.for_run(c.target, self.options, c.seed, validation))
-        first = as_mazes(rotations(c.target)) * (c.n_envs // 4)  # replaced every round
         self.model = new_sb3_model(
-            c.algo, c.robot, self._env(first), c.seed, c.hyperparameters, self._tensorboard_dir()
+            c.algo, c.robot, self._first_env(), c.seed, c.hyperparameters, self._tensorboard_dir()
         )
 
     def restore(self) -> int | None:
@@ -166,12 +169,11 @@ class SB3CoevolutionRun(Run):
             raise RLConfigError(f"checkpoint {str(path)!r} names no model file of its folder")
         if not model_file.exists():
             raise RLConfigError(f"checkpoint file {str(model_file)!r} is missing")
-        first = as_mazes(rotations(self.config.target)) * (self.config.n_envs // 4)
         self.model = load_sb3_model(
             model_file,
             self.config.algo,
             self.config.robot,
-            env=self._env(first),
+            env=self._first_env(),
             tensorboard_log=self._tensorboard_dir(),
         )
         self.model.num_timesteps = state.steps
@@ -200,7 +202,6 @@ class SB3CoevolutionRun(Run):
         c, s = self.config, self.state
         agent = self.final_agent()
         unseen = _play(as_mazes(rotations(unseen_mazes(c.target, c.seed))), agent)
-        members = s.mazes.member_records()
         return {
             "algo": c.algo,
             "regime": c.regime,
@@ -219,7 +220,7 @@ class SB3CoevolutionRun(Run):
             "unseen_success": float(unseen.success.mean()),
             "unseen_reward": float(unseen.paper_reward.mean()),
             "mazes_ever": len(s.mazes.records),
-            "members": len(members),
+            "members": len(s.mazes.members),
             "coevolution": self.options.to_dict(),
         }
 
@@ -265,8 +266,7 @@ class SB3CoevolutionRun(Run):
                 s.champion_fitness, s.champion_success = validation, validation_success
                 s.champion_round = s.round
                 agent.save(self.out / "champion.zip")
-        members = s.mazes.member_records()
-        difficulty = float(np.mean([r.difficulty for r in members])) if members else 0.0
+        members, difficulty = len(s.mazes.members), s.mazes.mean_difficulty()
         logger = model.logger
         for key, value in (
             ("validation_success", validation_success),
@@ -274,7 +274,7 @@ class SB3CoevolutionRun(Run):
             ("batch_success", float(success.mean())),
             ("batch_difficulty", report.batch_difficulty),
             ("population_difficulty", difficulty),
-            ("members", len(members)),
+            ("members", members),
         ):
             if not np.isnan(value):
                 logger.record(f"coevolution/{key}", value)
@@ -288,7 +288,7 @@ class SB3CoevolutionRun(Run):
             "validation": validation,
             "validation_success": validation_success,
             "champion_success": s.champion_success,
-            "members": len(members),
+            "members": members,
             "admitted": report.admitted,
             "batch_difficulty": round(report.batch_difficulty, 4),
             "population_difficulty": round(difficulty, 4),

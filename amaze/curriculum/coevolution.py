@@ -442,6 +442,11 @@ class MazePopulation:
             staleness=self.config.staleness,
         )
 
+    def mean_difficulty(self) -> float:
+        """Mean difficulty of the members (0 without members)."""
+        members = self.member_records()
+        return float(np.mean([r.difficulty for r in members])) if members else 0.0
+
     def diversity(self) -> float:
         """Mean distance between two members' descriptors (0 with fewer than two)."""
         points = np.array([r.descriptor() for r in self.member_records()])
@@ -519,8 +524,10 @@ class MazePopulation:
         cache = self._generated
         if maze not in cache:
             if len(cache) > 2 * self.config.capacity + 2 * self.config.batch:
-                keep = {r.maze for r in self.member_records()}
-                for old in [m for m in cache if m not in keep]:
+                # the oldest non-members go; the newest (this batch's new mazes) stay
+                members = {r.maze for r in self.member_records()}
+                stale = [m for m in cache if m not in members]
+                for old in stale[: len(stale) - self.config.batch]:
                     del cache[old]
             cache[maze] = as_mazes(rotations(maze))
         return cache[maze]

@@ -17,12 +17,17 @@ current training session.
   ``success``), or the algorithm stopped (CMA-ES with no restart left). A
   new session starts with :meth:`~evolution.algorithms.SearchAlgorithm.forget_champion`:
   fitness on the previous mazes does not compare with fitness on these.
+  The previous champion is played on the new mazes instead (its steps
+  count in the session) and is the champion to beat: a branch never hands
+  on an agent worse on its own mazes than the one it started from, even
+  when CMA-ES restarts from a random mean mid-session, and a session
+  whose inherited champion is already optimal there ends at once
+  (converged).
   ``checkpoint()`` is called after the session's first generation, then after
   the first generation ending ``checkpoint_seconds`` after the previous call
   (0: every generation), and at the end.
 * ``agent()`` is the session's champion (the best individual on the current
-  mazes) as a policy; the previous session's champion while a session has
-  played no generation.
+  mazes, the inherited champion included) as a policy.
 * ``branch(seed)`` is a deep copy whose algorithm is reseeded with ``seed``
   (:meth:`~evolution.algorithms.SearchAlgorithm.reseed`), without a session.
 * ``save(folder)`` writes ``learner.pkl`` (the whole learner, a checkpoint of
@@ -39,6 +44,7 @@ same mazes and budget ends bit-identical to one never interrupted.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -189,6 +195,8 @@ class EvolutionLearner:
         ):
             self.algorithm.forget_champion()
             session = self.session = Session(mazes, budget_steps, budget_seconds=budget_seconds)
+            backend = self._evaluator(mazes)
+            self._inherit_champion(session, backend)
         backend = self._evaluator(mazes)
         last_checkpoint: float | None = None
         while self._goes_on(session):
@@ -274,6 +282,23 @@ class EvolutionLearner:
             evaluator = PopulationEvaluator(list(mazes), self.robot, fitness=self.fitness)
             self._backend = (mazes, evaluator)
         return self._backend[1]
+
+    def _inherit_champion(self, session: Session, backend: PopulationEvaluator) -> None:
+        """The previous champion, played on the new session's mazes, becomes the one to beat."""
+        if self.champion is None:
+            return
+        started = time.perf_counter()
+        result = backend.evaluate(self.agent())
+        session.seconds += time.perf_counter() - started
+        session.steps += result.env_steps
+        session.eval_seconds += result.seconds
+        self.env_steps += result.env_steps
+        self.eval_seconds += result.seconds
+        session.converged = self._converged(result)
+        session.champion_fitness = float(result.fitness[0])
+        self.champion = dataclasses.replace(
+            self.champion, fitness=session.champion_fitness, mazes=session.mazes
+        )
 
     def _generation(self, session: Session, backend: PopulationEvaluator) -> None:
         algorithm = self.algorithm

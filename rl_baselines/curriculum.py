@@ -24,6 +24,7 @@ from typing import Any, ClassVar
 import torch
 
 from amaze.curriculum.learner import branch_seed
+from amaze.curriculum.regimes import MAX_OPEN_STAGES
 from amaze.runs.curriculum import CurriculumRun
 from rl_baselines.config import TrainConfig, fitted_hyperparameters
 from rl_baselines.learner import SB3Learner, load_sb3_learner, new_sb3_model
@@ -45,7 +46,8 @@ class SB3CurriculumRun(CurriculumRun):
         self.hyperparameters = fitted_hyperparameters(config)
         c = config
         assert c.stages is not None and c.branches is not None
-        branches = [1, *[c.branches] * (c.stages - 1)]
+        stages = MAX_OPEN_STAGES if c.open_ended else c.stages
+        branches = [1, *[c.branches] * (stages - 1)]
         self.log_names = {
             branch_seed(c.seed, stage, branch): f"stage-{stage}-branch-{branch}"
             for stage, count in enumerate(branches)

@@ -12,10 +12,20 @@ Here the alternatives are the branches of the curriculum loop:
 
 * **generate** (``k`` mazes): branch 0 keeps the parent's maze, the very
   same string; every other branch gets the parent's maze mutated by the maze
-  genome (:class:`~amaze.curriculum.genome.MazeGenome`, every operator,
-  sides up to ``max_size``), by 1 to ``mutations`` operators drawn at random
-  (never the same maze as the parent: a mutant equal to it is drawn again,
-  a few times);
+  genome (:class:`~amaze.curriculum.genome.MazeGenome`, sides up to
+  ``max_size``, signs added as the target has them), by 1 to ``mutations``
+  operators drawn at random (never the same maze as the parent: a mutant
+  equal to it is drawn again, a few times). By default the mutations are
+  *directed*, as MCC's grow its mazes: each step is drawn among the
+  operators that bring the maze closer to the target
+  (:func:`~amaze.curriculum.genome.maze_distance` falls: a larger side up to
+  the target's, the target's signs and probabilities, intersections) and the
+  neutral ones (:data:`NEUTRAL_OPERATORS`: other walls, another start
+  corner). Undirected, every operator may apply, and mazes drift both ways:
+  measured at 60 s (CMA-ES, seed 7), they stayed at 5x5 to 6x6 over 45
+  stages, far from a 20x20 target. Once a maze has the target's fields, its
+  mutants are the target's family with new walls or corners, and with the
+  loop's rehearsal the lineage trains on a batch of them;
 * **select**: candidates that reached the goal in none of their own maze's
   rotations are *extinct* and rejected (unless all are); the others are
   compared on three criteria, all maximised:
@@ -36,24 +46,29 @@ the loop plays every candidate on their 4 rotations. They judge
 generalisation to the family without ever looking at the suite.
 
 Options (``curator_options``): ``validation`` (number of mazes, 1..64),
-``mutations`` (most operators per mutant, 1..8, default 2) and ``max_size``
-(largest side of a mutant, default the target's larger side).
+``mutations`` (most operators per mutant, 1..8, default 4), ``max_size``
+(largest side of a mutant, default the target's larger side) and
+``directed`` (default true).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import numpy as np
+
 from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
-from amaze.curriculum.genome import MazeGenome, difficulty
+from amaze.curriculum.genome import MazeGenome, SignSet, difficulty, maze_distance
 from amaze.curriculum.validation import validation_mazes
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
 from amaze.validation import check_integer
 
-__all__ = ["EdensCurator", "pareto_front"]
+__all__ = ["NEUTRAL_OPERATORS", "EdensCurator", "pareto_front"]
 
 #: Draws of a mutant before settling for one equal to its parent.
 _REDRAWS = 8
+#: Operators a directed mutation may always draw: they change the walls, not the family.
+NEUTRAL_OPERATORS = ("seed", "start")
 
 
 def pareto_front(
@@ -79,7 +94,7 @@ class EdensCurator:
     """EDEnS-style selection of branches (see the module docstring)."""
 
     name = "edens"
-    options = ("validation", "mutations", "max_size")
+    options = ("validation", "mutations", "max_size", "directed")
 
     def __init__(self, context: CuratorContext) -> None:
         self.context = context
@@ -96,14 +111,18 @@ class EdensCurator:
             error=CuratorError,
         )  # fmt: skip
         self.mutations = check_integer(
-            "edens mutations", options.get("mutations", 2), minimum=1, maximum=8,
+            "edens mutations", options.get("mutations", 4), minimum=1, maximum=8,
             error=CuratorError,
         )  # fmt: skip
         max_size = check_integer(
             "edens max_size", options.get("max_size", max(target.width, target.height)),
             minimum=MIN_SIZE, maximum=MAX_SIZE, error=CuratorError,
         )  # fmt: skip
-        self.genome = MazeGenome(max_size=max_size)
+        self.directed = options.get("directed", True)
+        if not isinstance(self.directed, bool):
+            raise CuratorError(f"edens directed {self.directed!r} is not true or false")
+        self.target = target
+        self.genome = MazeGenome(max_size=max_size, signs=SignSet.of(target))
         seed = int(context.rng(0, "validation").integers(2**31))
         #: The validation mazes the loop plays every candidate on.
         self.validation = validation_mazes(target, count, seed)
@@ -131,8 +150,32 @@ class EdensCurator:
         for _ in range(k - 1):
             for _ in range(_REDRAWS):
                 count = int(rng.integers(1, self.mutations + 1))
-                mutant = self.genome.mutate(parent, rng, n=count).to_string()
+                mutant = self.mutate(parent, rng, count)
                 if mutant != parent:
                     break
             mazes.append(mutant)
         return mazes
+
+    def mutate(self, maze: str, rng: np.random.Generator, count: int) -> str:
+        """``maze`` after ``count`` mutation steps (directed ones unless ``directed`` is off)."""
+        if not self.directed:
+            return self.genome.mutate(maze, rng, n=count).to_string()
+        spec = MazeSpec.from_string(maze)
+        for _ in range(count):
+            spec = self.directed_step(spec, rng)
+        return spec.to_string()
+
+    def directed_step(self, spec: MazeSpec, rng: np.random.Generator) -> MazeSpec:
+        """One mutation drawn among the neutral ones and those that come closer to the target.
+
+        Every applicable operator is applied (each draws what it needs from
+        ``rng``, in the genome's order), then one of the admissible mutants is
+        drawn uniformly.
+        """
+        distance = maze_distance(spec, self.target)
+        admissible = []
+        for name in self.genome.applicable(spec):
+            mutant = self.genome.apply(name, spec, rng)
+            if name in NEUTRAL_OPERATORS or maze_distance(mutant, self.target) < distance:
+                admissible.append(mutant)
+        return admissible[int(rng.integers(len(admissible)))]

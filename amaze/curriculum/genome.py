@@ -90,6 +90,7 @@ from dataclasses import dataclass, field, fields
 from fractions import Fraction
 from functools import lru_cache
 from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 
@@ -176,6 +177,20 @@ class SignSet:
                 error=GenomeError,
             )
             object.__setattr__(self, name, value)
+
+    @classmethod
+    def of(cls, maze: MazeLike) -> SignSet:
+        """The signs of ``maze``: its first sign of each kind (the default for a kind it lacks)."""
+        spec = _as_spec(maze)
+        values: dict[str, Any] = {}
+        for kind in SignKind:
+            signs = getattr(spec, kind.value)
+            if signs:
+                values[kind.value] = signs[0]
+        for name in ("p_lure", "p_trap"):
+            if getattr(spec, name):
+                values[name] = getattr(spec, name)
+        return cls(**values)
 
     def sign(self, kind: SignKind | str) -> Sign:
         """The sign added for ``kind``."""

@@ -7,6 +7,9 @@ steps the branch trained for; the row's label gives the stage's steps. The
 branch selected to go on is framed in red, and lines join it to the branches
 of the next stage it was copied into, so the lineage of the final agent reads
 from top to bottom; the final choice is framed in green and marked "final".
+A long (open-ended) curriculum shows :data:`MAX_ROWS` stages spread evenly
+over it, the first and the last ones included, and says how many stages lie
+between two rows that do not follow each other.
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ SELECTED = (214, 39, 40)
 FINAL = (17, 128, 64)
 LINEAGE = (31, 119, 180)
 TEXT = (30, 30, 30)
+#: Most stages drawn in a curriculum picture.
+MAX_ROWS = 24
 
 
 def _count(steps: int) -> str:
@@ -55,8 +60,17 @@ def _fields(spec: MazeSpec) -> str:
     return f"{spec.width}x{spec.height} {'U' if spec.unicursive else ''}{kinds}".rstrip()
 
 
+def shown_stages(records: Sequence[StageRecord], rows: int = MAX_ROWS) -> list[StageRecord]:
+    """At most ``rows`` of ``records``, spread evenly, the first and the last ones included."""
+    if len(records) <= rows:
+        return list(records)
+    step = (len(records) - 1) / (rows - 1)
+    return [records[round(row * step)] for row in range(rows)]
+
+
 def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.Image:
     """The picture of ``records`` (stages in order, each with its candidates)."""
+    records = shown_stages(records)
     columns = max((len(r.candidates) for r in records), default=1)
     cell_w, cell_h = THUMBNAIL + PAD, THUMBNAIL + CAPTION + PAD
     top = 30 if title else PAD
@@ -97,7 +111,11 @@ def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.
             draw.text((x0, y1 + 17), f"Rbar {candidate.mean_reward:+.2f}", fill=TEXT, font=small)
             details = f"{_fields(spec)}, {_count(candidate.env_steps)} st"
             draw.text((x0, y1 + 30), details, fill=TEXT, font=small)
-        if row + 1 < len(records) and record.selected is not None:
+        if row + 1 < len(records) and records[row + 1].stage > record.stage + 1:
+            skipped = records[row + 1].stage - record.stage - 1
+            y_gap = top + row * cell_h + THUMBNAIL + CAPTION - 3
+            draw.text((PAD, y_gap), f"+{skipped} stages", fill=LINEAGE, font=small)
+        elif row + 1 < len(records) and record.selected is not None:
             px0, _, px1, py1 = box(row, record.selected)
             for child in records[row + 1].candidates:
                 cx0, cy0, cx1, _ = box(row + 1, child.branch)

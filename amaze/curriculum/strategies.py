@@ -92,7 +92,6 @@ import numpy as np
 from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
 from amaze.curriculum.genome import SEED_RANGE, MazeGenome, SignSet, difficulty, new_seed
 from amaze.curriculum.interpolation import TRIVIAL_SIDE, curriculum
-from amaze.maze.signs import SignKind
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
 from amaze.validation import check_integer, check_number
 
@@ -290,7 +289,7 @@ class _Strategy:
                 maximum=1,
                 error=CuratorError,
             ),
-            signs=_target_signs(self.target),
+            signs=SignSet.of(self.target),
         )
         self.options = options
 
@@ -319,19 +318,6 @@ class _Strategy:
     def consolidate(k: int, spec: MazeSpec, rng: np.random.Generator) -> list[str]:
         """The same fields, ``k`` new seeds."""
         return [new_seed(spec, rng).to_string() for _ in range(k)]
-
-
-def _target_signs(target: MazeSpec) -> SignSet:
-    """The genome's sign set: the target's first sign of each kind (the default otherwise)."""
-    values: dict[str, Any] = {}
-    for kind in SignKind:
-        signs = getattr(target, kind.value)
-        if signs:
-            values[kind.value] = signs[0]
-    for name in ("p_lure", "p_trap"):
-        if getattr(target, name):
-            values[name] = getattr(target, name)
-    return SignSet(**values)
 
 
 class CarefulCurator(_Strategy):

@@ -26,6 +26,20 @@ between stages and branches by
 handed on to the next ones). Branches of a stage are copies of the selected
 agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_seed`).
 
+**Open-ended stages** (``stages`` 0, the ``edens`` regime's default): the
+loop plays stages until the budget is spent (less than 1 % left), each
+branch allowed an epoch of the budget (:mod:`amaze.curriculum.regimes`); a
+stage whose branches converge early leaves its steps to more stages instead
+of ending the run with its budget unspent. The final choice comes after the
+last stage played.
+
+**Rehearsal** (``rehearsal`` R; the ``edens`` regime's default is 7, the
+paper's loop has none): a branch trains on its own maze and on the last R
+distinct mazes of its lineage (the selected branches' own mazes, newest
+first), each in its 4 rotations: a batch that grows with the curriculum and
+keeps the agent from forgetting what the lineage learnt. It is evaluated as
+before, on the stage's mazes and the validation mazes.
+
 **Run folder** (besides ``config.json``, ``summary.json``, ``trajectories/``):
 
 * ``decisions.jsonl``: every decision, one JSON object per line, appended
@@ -38,8 +52,9 @@ agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_
   training, saved by the trainer), ``result.json`` (the candidate: mazes,
   results per maze and rotation on every maze of the stage, in branch order,
   lineage, steps,
-  seconds, and its results on the curator's validation mazes if it has
-  any; written last, so a branch with a result is finished),
+  seconds, the ``training_mazes`` (its own and the rehearsed ones), and its
+  results on the curator's validation mazes if it has any; written last, so
+  a branch with a result is finished),
   ``trajectory.png`` (the agent on its maze) and, while it trains,
   ``checkpoint/`` (the learner mid-session);
 * ``progress.csv``: one row per finished branch;
@@ -87,9 +102,12 @@ from amaze.curriculum.interpolation import MAX_STAGES
 from amaze.curriculum.learner import Learner, branch_seed
 from amaze.curriculum.regimes import (
     CURRICULUM_REGIMES,
+    MAX_OPEN_STAGES,
+    OPEN_STAGES,
     REGIMES,
     branch_allowance,
     branch_seconds,
+    curriculum_over,
 )
 from amaze.evaluation.policy import record_episode
 from amaze.evaluation.protocol import Evaluator
@@ -116,10 +134,14 @@ REPLAY_FILE = "replay.jsonl"
 MAX_BRANCHES = 64
 #: About the side, in pixels, of a branch's trajectory picture.
 PICTURE_SIDE = 320
-#: The default numbers of stages and branches (the paper's S and K).
-DEFAULT_STAGES = 10
+#: The default numbers of stages and branches (the paper's S and K; EDEnS: open-ended).
+DEFAULT_STAGES = {"edhucat": 10, "interpolation": 10, "edens": OPEN_STAGES}
 DEFAULT_BRANCHES = {"edhucat": 3, "interpolation": 1, "edens": 3}
 DEFAULT_CURATOR = {"edhucat": "careful", "interpolation": "interpolation", "edens": "edens"}
+#: The default rehearsal: earlier lineage mazes a branch also trains on (the paper: none).
+DEFAULT_REHEARSAL = {"edhucat": 0, "interpolation": 0, "edens": 7}
+#: Most rehearsed mazes.
+MAX_REHEARSAL = 64
 PROGRESS_FIELDS = (
     "branches",
     "stage",
@@ -154,13 +176,21 @@ class CurriculumConfig(RunConfig):
         metavar="NAME",
     )
     stages: int | None = option(
-        None, f"curriculum stages S, the trivial first one included (default {DEFAULT_STAGES})",
+        None,
+        "curriculum stages S, the trivial first one included; 0: open-ended, stages until"
+        " the budget is spent (default: 10; 0 for edens)",
         metavar="S",
-    )  # fmt: skip
+    )
     branches: int | None = option(
         None,
         "branches K per stage (default: 3 for edhucat and edens, 1 for interpolation)",
         metavar="K",
+    )
+    rehearsal: int | None = option(
+        None,
+        "earlier mazes of the lineage each branch also trains on, besides its own"
+        " (default: 7 for edens, 0 otherwise)",
+        metavar="R",
     )
     target: str = option(
         PAPER_TRAINING_MAZE,
@@ -184,6 +214,11 @@ class CurriculumConfig(RunConfig):
         """True for the regimes the curriculum loop plays."""
         return self.regime in CURRICULUM_REGIMES
 
+    @property
+    def open_ended(self) -> bool:
+        """True for a curriculum whose stages go on until the budget is spent."""
+        return self.is_curriculum and self.stages == OPEN_STAGES
+
     def validate(self) -> CurriculumConfig:
         """Check the regime fields (and the shared ones); fill a curriculum's defaults."""
         super().validate()
@@ -198,7 +233,7 @@ class CurriculumConfig(RunConfig):
             raise self.error(f"target {self.target!r}: {problem}") from None
         self._check_coevolution()
         if not self.is_curriculum:
-            for name in ("curator", "stages", "branches", "replay"):
+            for name in ("curator", "stages", "branches", "rehearsal", "replay"):
                 if getattr(self, name) is not None:
                     raise self.error(
                         f"{name} {getattr(self, name)!r} is for the curriculum regimes"
@@ -218,11 +253,18 @@ class CurriculumConfig(RunConfig):
                 f"unknown curator {self.curator!r} (choose from {', '.join(curator_names())})"
             )
         if self.stages is None:
-            self.stages = DEFAULT_STAGES
+            self.stages = DEFAULT_STAGES[self.regime]
         if self.branches is None:
             self.branches = DEFAULT_BRANCHES[self.regime]
+        if self.rehearsal is None:
+            self.rehearsal = DEFAULT_REHEARSAL[self.regime]
         self.stages = check_integer(
-            "stages", self.stages, minimum=1, maximum=MAX_STAGES, error=self.error
+            "stages", self.stages, minimum=0, maximum=MAX_STAGES, error=self.error
+        )
+        if self.stages == OPEN_STAGES and self.regime == "interpolation":
+            raise self.error("stages 0: an interpolation has a fixed number of stages (2 or more)")
+        self.rehearsal = check_integer(
+            "rehearsal", self.rehearsal, minimum=0, maximum=MAX_REHEARSAL, error=self.error
         )
         self.branches = check_integer(
             "branches", self.branches, minimum=1, maximum=MAX_BRANCHES, error=self.error
@@ -301,11 +343,22 @@ class Decision:
 
 
 def decision_sequence(stages: int) -> list[tuple[int, str]]:
-    """The (stage, kind) of every decision of a finished run, in order."""
+    """The (stage, kind) of every decision of a finished run, in order.
+
+    An open-ended run (``stages`` = :data:`~amaze.curriculum.regimes.OPEN_STAGES`)
+    makes a prefix of the longest one's, ending with a select.
+    """
+    if stages == OPEN_STAGES:
+        stages = MAX_OPEN_STAGES
     sequence = [(0, "generate")]
     for stage in range(1, stages):
         sequence += [(stage, "select"), (stage, "generate")]
     return [*sequence, (stages, "select")]
+
+
+def decision_index(stage: int, kind: str) -> int:
+    """Where the ``kind`` decision of ``stage`` comes in :func:`decision_sequence`."""
+    return 2 * stage if kind == "generate" else 2 * stage - 1
 
 
 class DecisionLog:
@@ -508,7 +561,14 @@ class CurriculumRun(Run):
         if not c.is_curriculum:
             return super().replay_config(source, config)
         decisions = DecisionLog(source / DECISIONS_FILE).read(c.stages, c.branches, c.error)
-        if len(decisions) < len(decision_sequence(c.stages)):
+        if c.open_ended:
+            # Its length depends on the budget: a finished run wrote its summary.
+            if not (source / "summary.json").exists() or not decisions:
+                raise c.error(
+                    f"{str(source)!r} is an unfinished open-ended run with {len(decisions)}"
+                    " decisions (resume it first)"
+                )
+        elif len(decisions) < len(decision_sequence(c.stages)):
             raise c.error(
                 f"{str(source)!r} holds {len(decisions)} of the {2 * c.stages} decisions of its"
                 " run (it is unfinished: resume it first)"
@@ -569,7 +629,8 @@ class CurriculumRun(Run):
             dynamic_ncols=True,
         ) as bar:
             parent: Candidate | None = None
-            for stage in range(c.stages):
+            stage = 0
+            while not self._over(stage):
                 if stage == 0:
                     trivial = [c.curator_context().trivial_maze()]
                     mazes = self._decide(0, "generate", lambda t=trivial: t)
@@ -587,10 +648,20 @@ class CurriculumRun(Run):
                     seconds = branch_seconds(budget_seconds, spent, stage, c.stages, c.branches)
                     allowance = (allowance[0], seconds)
                 evaluator = Evaluator(c.robot, rotations(mazes), inputs=False)
+                lineage = self._lineage_mazes()
                 candidates: list[Candidate] = []
                 for branch in range(len(mazes)):
+                    own = mazes[branch]
+                    rehearsed = [maze for maze in lineage if maze != own][: c.rehearsal]
                     candidate = self._branch(
-                        stage, branch, mazes, parent, allowance, evaluator, self._steps(candidates)
+                        stage,
+                        branch,
+                        mazes,
+                        [own, *rehearsed],
+                        parent,
+                        allowance,
+                        evaluator,
+                        self._steps(candidates),
                     )
                     candidates.append(candidate)
                     done = self._steps(candidates) if c.budget_steps else self._seconds(candidates)
@@ -599,7 +670,8 @@ class CurriculumRun(Run):
                         stage=stage, branch=branch, success=f"{candidate.success_rate:.2f}"
                     )
                 self.records.append(StageRecord(stage, tuple(mazes), tuple(candidates)))
-            self.final = self._select(c.stages)
+                stage += 1
+            self.final = self._select(stage)
 
     def final_agent(self) -> Any:
         assert self.final is not None
@@ -629,7 +701,9 @@ class CurriculumRun(Run):
             "regime": c.regime,
             "curator": c.curator,
             "stages": c.stages,
+            "stages_played": len(self.records),
             "branches": c.branches,
+            "rehearsal": c.rehearsal,
             "target": c.target,
             "replay_of": c.replay,
             "budget_steps": c.budget_steps,
@@ -657,9 +731,16 @@ class CurriculumRun(Run):
 
     @classmethod
     def headline(cls, summary: Mapping[str, Any]) -> str:
+        played = summary.get("stages_played", summary["stages"])
+        stages = f"{played} stages" + (" (open-ended)" if summary["stages"] == OPEN_STAGES else "")
+        lineage = summary["final_lineage"]
+        if len(lineage) > 12:
+            lineage = (
+                f"[{', '.join(map(str, lineage[:3]))}, ... {', '.join(map(str, lineage[-3:]))}]"
+            )
         return (
-            f"{summary['regime']} ({summary['curator']}, {summary['stages']} stages x"
-            f" {summary['branches']} branches), final lineage {summary['final_lineage']};"
+            f"{summary['regime']} ({summary['curator']}, {stages} x"
+            f" {summary['branches']} branches), final lineage {lineage};"
             f" {super().headline(summary)}"
         )
 
@@ -667,7 +748,27 @@ class CurriculumRun(Run):
 
     def _title(self) -> str:
         c = self.config
-        return f"{c.regime} / {c.curator}, seed {c.seed}: {c.stages} stages x {c.branches}"
+        stages = "open-ended stages" if c.open_ended else f"{c.stages} stages"
+        return f"{c.regime} / {c.curator}, seed {c.seed}: {stages} x {c.branches}"
+
+    def _over(self, stage: int) -> bool:
+        """True when the loop plays no ``stage``: it has played all of them or spent its budget."""
+        c = self.config
+        spent = [
+            (c.budget_steps, self._steps()),
+            (getattr(c, "budget_seconds", None), self._seconds()),
+        ]
+        return curriculum_over(stage, c.stages, spent)
+
+    def _lineage_mazes(self) -> list[str]:
+        """The own mazes of the selected branches so far, newest first, each once."""
+        mazes: list[str] = []
+        for record in reversed(self.records):
+            if record.selected is not None:
+                maze = record.candidates[record.selected].mazes[0]
+                if maze not in mazes:
+                    mazes.append(maze)
+        return mazes
 
     def _steps(self, current: Sequence[Candidate] = ()) -> int:
         """Env steps of every finished branch (and of ``current``, the stage in progress)."""
@@ -722,7 +823,7 @@ class CurriculumRun(Run):
     ) -> Any:
         """A decision: recorded already (resume), replayed, or asked now and recorded."""
         c = self.config
-        index = decision_sequence(c.stages).index((stage, kind))
+        index = decision_index(stage, kind)
         if index < len(self.recorded):
             decision = self.recorded[index]
         else:
@@ -786,12 +887,17 @@ class CurriculumRun(Run):
         stage: int,
         branch: int,
         mazes: Sequence[str],
+        training: Sequence[str],
         parent: Candidate | None,
         allowance: tuple[int | None, float | None],
         evaluator: Evaluator,
         steps_before: int,
     ) -> Candidate:
-        """Train (or finish training) one branch, evaluate it, write its result."""
+        """Train (or finish training) one branch, evaluate it, write its result.
+
+        The branch trains on the 4 rotations of each of ``training``: its own
+        maze, ``mazes[branch]``, then the lineage's rehearsed ones.
+        """
         c = self.config
         folder = self._branch_folder(stage, branch)
         if (folder / "result.json").exists():
@@ -813,7 +919,7 @@ class CurriculumRun(Run):
             learner = parent_learner.branch(branch_seed(c.seed, stage, branch))
         clock.append(time.perf_counter())
         outcome = learner.train(
-            rotations(mazes[branch]),
+            [rotated for maze in training for rotated in rotations(maze)],
             allowance[0],
             budget_seconds=allowance[1],
             checkpoint=lambda: learner.save(checkpoint),
@@ -860,6 +966,7 @@ class CurriculumRun(Run):
         )
         data = _candidate_to_dict(candidate, results)
         data["time"] = {part: round(seconds, 3) for part, seconds in spent.items()}
+        data["training_mazes"] = list(training)
         write_json(folder / "result.json", data)
         # Branches run in order: the earlier stages' and this stage's first ``branch``.
         finished = sum(len(record.candidates) for record in self.records) + branch + 1

@@ -225,3 +225,24 @@ def test_a_curriculum_on_a_seconds_budget(tmp_path: Path) -> None:
     assert json.loads((out / "config.json").read_text())["budget_steps"] is None
     for result in out.glob("stages/stage-*/branch-*/result.json"):
         assert json.loads(result.read_text())["env_steps"] > 0  # at least one generation
+
+
+def test_the_edens_regime_plays_open_ended_stages_until_its_budget_is_spent(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / "edens"
+    args = ["--regime", "edens", "--budget-steps", "120000", "--population-size", "8"]
+    assert main([*args, "--out", str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["stages"] == 0 and summary["rehearsal"] == 7
+    assert summary["stages_played"] >= 10  # an epoch is 120000 / (3 * 20) steps a branch
+    assert summary["env_steps"] >= 120000 * 0.99
+    decisions = _decisions(out)
+    assert decisions[-1][:2] == (summary["stages_played"], "select")
+    last = summary["stages_played"] - 1
+    result = json.loads((out / f"stages/stage-{last}/branch-0/result.json").read_text())
+    assert len(result["training_mazes"]) > 1  # its own maze and the lineage's
+    replay = tmp_path / "replay"
+    assert main(["--replay", str(out), "--out", str(replay), "--no-progress"]) == 0
+    assert _decisions(replay) == decisions
+    assert _same(_final_champion(replay), _final_champion(out))

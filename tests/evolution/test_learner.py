@@ -184,7 +184,25 @@ def test_branches_draw_independently(algo: str) -> None:
     assert _same_fingerprint(algo, one.algorithm, one_again.algorithm)
     assert not _same_fingerprint(algo, one.algorithm, two.algorithm)
     if algo == "cmaes":  # (NEAT's first generation is the parent's bred population)
-        assert not _same(_arrays(one), _arrays(two))
+        found = [twin.algorithm.champion_arrays()[0] for twin in (one, two)]
+        assert not _same(*found)  # what each branch's own search found
+
+
+@pytest.mark.parametrize("algo", ["cmaes", "neat"])
+def test_a_session_starts_from_the_inherited_champion_played_on_its_mazes(algo: str) -> None:
+    parent = _learner(algo)
+    parent.train(SMALL, 30_000)
+    replay = PopulationEvaluator(list(SMALL), "DD").evaluate(parent.agent())
+    child = parent.branch(5)
+    child.train(SMALL, replay.env_steps + 1)  # the replay, then one generation
+    assert child.last_session.generations == 1
+    # That generation's best is no better than the parent's champion, which stays.
+    assert child.algorithm.champion[1] <= replay.fitness[0]  # (NEAT keeps its elite)
+    assert child.champion.fitness == replay.fitness[0]
+    assert _same(_arrays(child), _arrays(parent))
+    assert child.champion.mazes == tuple(SMALL)
+    # The replay is paid from the session's steps.
+    assert child.last_session.steps == child.env_steps - parent.env_steps > replay.env_steps
 
 
 def test_same_seed_same_mazes_same_learner() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from amaze.curriculum.curators import (
@@ -16,7 +17,7 @@ from amaze.curriculum.curators import (
     make_curator,
 )
 from amaze.curriculum.edens import EdensCurator, pareto_front
-from amaze.curriculum.genome import difficulty
+from amaze.curriculum.genome import difficulty, maze_distance
 from amaze.curriculum.validation import reserved_seeds, validation_mazes
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE, standard_suite
 from amaze.maze.spec import MazeSpec
@@ -120,9 +121,43 @@ def test_generate_keeps_the_parents_maze_for_branch_0_and_mutates_the_others() -
         assert max(spec.width, spec.height) <= 12  # the target's side by default
 
 
+def _fields(maze: str) -> dict:
+    """A maze's fields but its walls and start corner (what the family is made of)."""
+    spec = MazeSpec.from_string(maze)
+    return {
+        name: getattr(spec, name)
+        for name in ("width", "height", "unicursive", "clue", "lure", "trap", "p_lure", "p_trap")
+    }
+
+
+def test_a_directed_step_is_neutral_or_comes_closer_to_the_target() -> None:
+    curator = EdensCurator(context())
+    rng = np.random.default_rng(5)
+    spec = MazeSpec.from_string("M7_5x5_U")
+    for _ in range(300):
+        mutant = curator.directed_step(spec, rng)
+        same_family = _fields(mutant.to_string()) == _fields(spec.to_string())
+        closer = maze_distance(mutant, TARGET) < maze_distance(spec, TARGET)
+        assert mutant != spec and (same_family or closer)
+        spec = mutant
+    # Walking on, the maze reaches the target's family and stays in it.
+    assert _fields(spec.to_string()) == _fields(TARGET)
+
+
+def test_undirected_mutants_may_move_away_from_the_target() -> None:
+    directed = EdensCurator(context())
+    free = EdensCurator(context(directed=False))
+    parent = candidate(1, TARGET, (True,) * 4, (False,) * 4, -3.0)
+    history = History(stage=3, parent=parent, stages=())
+    assert all(_fields(m) == _fields(TARGET) for m in directed.generate(3, history))
+    away = [m for m in free.generate(9, history)[1:] if _fields(m) != _fields(TARGET)]
+    assert away  # the target's mutants leave its family without direction
+
+
 @pytest.mark.parametrize(
     ("options", "message"),
     [
+        ({"directed": "yes"}, "edens directed 'yes'"),
         ({"validaton": 3}, "unknown option.*validaton"),
         ({"validation": 0}, "edens validation"),
         ({"mutations": 9}, "edens mutations"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import replace
 from pathlib import Path
 
@@ -90,3 +91,18 @@ def test_a_maze_population_renders_best_score_first(tmp_path: Path) -> None:
     assert np.array_equal(np.asarray(image.crop(tile)), np.asarray(alone.crop(tile)))
     path = save_population_png(population((5,)), tmp_path / "population.png")
     assert path.read_bytes().startswith(b"\x89PNG")
+
+
+def test_a_long_curriculum_shows_its_stages_spread_evenly() -> None:
+    from amaze.curriculum.picture import MAX_ROWS, shown_stages
+
+    long = [
+        StageRecord(s, ("M1_5x5_U",), (candidate(s, 0, "M1_5x5_U"),), selected=0) for s in range(60)
+    ]
+    shown = shown_stages(long)
+    assert len(shown) == MAX_ROWS and shown[0].stage == 0 and shown[-1].stage == 59
+    assert all(a.stage < b.stage for a, b in itertools.pairwise(shown))
+    assert shown_stages(long[:5]) == long[:5]
+    full, short = render_curriculum(long), render_curriculum(long[:MAX_ROWS])
+    assert full.height == short.height  # no taller than MAX_ROWS rows
+    assert colour_count(full, FINAL) > 100

@@ -11,7 +11,13 @@ import pytest
 from amaze.curriculum import curators
 from amaze.curriculum.interpolation import curriculum
 from amaze.curriculum.learner import branch_seed
-from amaze.curriculum.regimes import branch_allowance, branch_seconds
+from amaze.curriculum.regimes import (
+    MAX_OPEN_STAGES,
+    OPEN_EPOCHS,
+    branch_allowance,
+    branch_seconds,
+    curriculum_over,
+)
 from amaze.errors import AmazeError
 from amaze.runs.curriculum import DECISIONS_FILE, DecisionLog, decision_sequence
 from tests.amaze.runs.toy_curriculum import ToyConfig, ToyLearner, ToyRun
@@ -265,7 +271,13 @@ def test_resume_of_a_finished_run_redoes_nothing(tmp_path: Path, finished: Path)
         ({"regime": "direct", "curator": None, "stages": 3}, "stages 3 is for the curriculum"),
         ({"regime": "interpolation", "curator": "random"}, "interpolation regime's curator"),
         ({"curator": "nobody"}, "unknown curator 'nobody' .*careful"),
-        ({"stages": 0}, "stages"),
+        ({"stages": -1}, "stages"),
+        ({"regime": "interpolation", "curator": None, "stages": 0}, "interpolation has a fixed"),
+        ({"rehearsal": 65}, "rehearsal"),
+        (
+            {"regime": "direct", "curator": None, "stages": None, "branches": None, "rehearsal": 2},
+            "rehearsal 2 is for",
+        ),
         ({"branches": 65}, "branches"),
         ({"target": "M5_8x8_Q"}, "target 'M5_8x8_Q'"),
         ({"curator_options": [1]}, "curator_options"),
@@ -282,6 +294,9 @@ def test_bad_regime_fields_are_refused_naming_the_value(changes: dict, message: 
 def test_a_curriculum_config_records_its_defaults() -> None:
     config = ToyConfig.from_dict({"regime": "edhucat"})
     assert (config.curator, config.stages, config.branches) == ("careful", 10, 3)
+    assert config.rehearsal == 0 and not config.open_ended  # the paper's loop
+    edens = ToyConfig.from_dict({"regime": "edens"})
+    assert (edens.stages, edens.branches, edens.rehearsal, edens.open_ended) == (0, 3, 7, True)
     direct = ToyConfig.from_dict({})
     assert (direct.curator, direct.stages, direct.branches) == (None, None, None)
 
@@ -412,3 +427,109 @@ def test_each_branch_says_where_its_time_went(finished: Path) -> None:
         total += result["seconds"]
     assert sum(summary["time"].values()) == pytest.approx(total, abs=0.01)
     assert summary["seconds"] == pytest.approx(total, abs=0.01)
+
+
+# -- open-ended stages and rehearsal ---------------------------------------------------
+
+OPEN = {**CONFIG, "stages": 0, "rehearsal": 2}
+
+
+@pytest.fixture(scope="module")
+def open_ended(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("open") / "run"
+    ToyRun.fresh(OPEN, out)
+    return out
+
+
+def test_an_open_ended_run_plays_epochs_until_its_budget_is_spent(open_ended: Path) -> None:
+    summary = json.loads((open_ended / "summary.json").read_text())
+    # Each branch may spend an epoch, 6000 // (2 * 100) = 30 steps: stage 0 trains one
+    # agent (30), 99 stages of two (5940); 30 are left, under 1 % of the budget: over.
+    assert OPEN_EPOCHS == 100
+    assert branch_allowance(6000, 0, 0, 0, 2) == 30
+    assert summary["stages"] == 0 and summary["stages_played"] == 100
+    assert summary["env_steps"] == 5970
+    rows = [json.loads((p / "result.json").read_text()) for p in _branches(open_ended)]
+    steps = {(r["stage"], r["branch"]): r["env_steps"] for r in rows}
+    assert set(steps.values()) == {30}
+    assert branch_allowance(6000, 5950, 99, 0, 2) == 25  # what is left, when less
+    sequence = [(d["stage"], d["kind"]) for d in decisions(open_ended)]
+    assert sequence == decision_sequence(0)[: 2 * 100] and sequence[-1] == (100, "select")
+
+
+def test_an_open_ended_branch_rehearses_its_lineages_mazes(open_ended: Path) -> None:
+    made = decisions(open_ended)
+    own = {}  # stage -> the selected branch's maze, from the decisions alone
+    for decision in made:
+        if decision["kind"] == "generate":
+            mazes = decision["mazes"]
+        else:
+            own[decision["stage"] - 1] = mazes[decision["choice"]]
+    for folder in _branches(open_ended):
+        result = json.loads((folder / "result.json").read_text())
+        stage, maze = result["stage"], result["mazes"][0]
+        lineage = []
+        for earlier in range(stage - 1, -1, -1):
+            if own[earlier] not in lineage:
+                lineage.append(own[earlier])
+        expected = [maze, *[m for m in lineage if m != maze][:2]]
+        assert result["training_mazes"] == expected
+    assert any(len(json.loads((f / "result.json").read_text())["training_mazes"]) == 3
+               for f in _branches(open_ended))  # fmt: skip
+
+
+def test_an_open_ended_run_resumes_and_replays_to_the_same_curriculum(
+    tmp_path: Path, open_ended: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls = {"n": 0}
+    original = ToyLearner.train
+
+    def dying(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None):
+        calls["n"] += 1
+        if calls["n"] == 117:  # a branch of stage 58
+            raise Interrupted
+        return original(self, mazes, budget_steps, checkpoint=checkpoint)
+
+    monkeypatch.setattr(ToyLearner, "train", dying)
+    out = tmp_path / "run"
+    with pytest.raises(Interrupted):
+        ToyRun.fresh(OPEN, out)
+    monkeypatch.setattr(ToyLearner, "train", original)
+    ToyRun.resume(out)
+    assert choices(out) == choices(open_ended)
+    replay = ToyRun.replay(open_ended, tmp_path / "replay")
+    assert choices(tmp_path / "replay") == choices(open_ended)
+    assert replay.summary["stages_played"] == 100
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    (unfinished / "config.json").write_bytes((open_ended / "config.json").read_bytes())
+    (unfinished / DECISIONS_FILE).write_bytes((open_ended / DECISIONS_FILE).read_bytes())
+    with pytest.raises(AmazeError, match="unfinished open-ended run"):
+        ToyRun.replay(unfinished, tmp_path / "new")
+
+
+def test_an_open_ended_run_ends_once_its_seconds_are_spent(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    result = TimedRun.fresh({**OPEN, "budget_steps": None, "budget_seconds": 0.6}, out)
+    summary = result.summary
+    assert 0.6 * 0.99 <= summary["seconds"] < 0.6 + 1.0  # spent, give or take the last stage
+    assert summary["stages_played"] >= 2
+    spent = 0.0
+    for stage in range(summary["stages_played"]):
+        expected = branch_seconds(0.6, spent, stage, 0, 2)
+        assert expected <= 0.6 / (2 * OPEN_EPOCHS)  # an epoch at most
+        for folder in sorted(out.glob(f"stages/stage-{stage}/branch-*")):
+            given = json.loads((folder / "agent/toy.json").read_text())["budget_seconds"]
+            assert given == pytest.approx(expected, abs=1e-12)
+            spent += json.loads((folder / "result.json").read_text())["seconds"]
+
+
+def test_when_a_curriculum_is_over() -> None:
+    assert curriculum_over(3, 3) and not curriculum_over(2, 3)  # a fixed number of stages
+    assert curriculum_over(5, 0, [(None, 10.0), (100.0, 99.5)])  # under 1 % left
+    assert not curriculum_over(5, 0, [(None, 10.0), (100.0, 98.0)])
+    assert not curriculum_over(0, 0, [(100.0, 100.0)])  # stage 0 always plays
+    assert curriculum_over(MAX_OPEN_STAGES, 0, [(100.0, 0.0)])
+    with pytest.raises(ValueError, match="stage 400"):
+        branch_allowance(100, 0, MAX_OPEN_STAGES, 0, 2)
+    assert branch_allowance(1000, 100, MAX_OPEN_STAGES - 1, 0, 2) == 450  # the last shares all

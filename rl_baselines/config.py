@@ -45,6 +45,8 @@ class TrainConfig(CurriculumConfig):
     error = RLConfigError
     options_field = "hyperparameters"
     supported_regimes = REGIMES  # coevolution included (rl_baselines.coevolution)
+    #: An open-ended curriculum's epoch: the paper's 100 k steps a branch at 3 M steps, K = 3.
+    default_epochs = 10
 
     algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
     budget_steps: int = option(3_000_000, "environment steps")
@@ -146,7 +148,7 @@ def fitted_hyperparameters(config: TrainConfig) -> dict[str, Any]:
     assert c.stages is not None and c.branches is not None
     defaults = sb3_defaults(c.algo)
     used = dict(c.hyperparameters)
-    allowance = branch_allowance(c.budget_steps, 0, 0, c.stages, c.branches)
+    allowance = branch_allowance(c.budget_steps, 0, 0, c.stages, c.branches, c.epochs)
     fitted = False
     if "n_steps" not in used:
         n_steps = int(defaults["n_steps"])

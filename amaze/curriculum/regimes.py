@@ -25,10 +25,11 @@ branches, and :func:`curriculum_over` says when it is spent.
 
 **Open-ended curricula** (``stages`` = :data:`OPEN_STAGES`, EDEnS's 1+λ
 loop): stages follow one another until the budget is spent, each branch
-allowed an *epoch* of ``budget / (K * OPEN_EPOCHS)`` (or what is left, if
-less). A stage whose branches converged early spends less than its epochs,
-so the run plays more stages, never fewer steps: the budget is spent on
-training, not left over. At most :data:`MAX_OPEN_STAGES` stages.
+allowed an *epoch* of ``budget / (K * epochs)`` (or what is left, if less;
+``epochs`` defaults to :data:`OPEN_EPOCHS`). A stage whose branches
+converged early spends less than its epochs, so the run plays more stages,
+never fewer steps: the budget is spent on training, not left over. At
+most :data:`MAX_OPEN_STAGES` stages.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ REGIMES = ("direct", "interpolation", "edhucat", "edens", "coevolution")
 CURRICULUM_REGIMES = ("interpolation", "edhucat", "edens")
 #: ``stages`` of an open-ended curriculum: stages until the budget is spent.
 OPEN_STAGES = 0
-#: An open-ended curriculum's epoch is ``budget / (branches * OPEN_EPOCHS)`` per branch.
+#: The default ``epochs`` of an open-ended curriculum: an epoch is ``budget / (K * epochs)``.
 OPEN_EPOCHS = 100
 #: Most stages of an open-ended curriculum (its pictures and decision file stay readable).
 MAX_OPEN_STAGES = 400
@@ -73,7 +74,9 @@ def _stage_shares(stage: int, stages: int, branches: int) -> int:
     return branches * (stages - stage)
 
 
-def branch_allowance(budget: int, used: int, stage: int, stages: int, branches: int) -> int:
+def branch_allowance(
+    budget: int, used: int, stage: int, stages: int, branches: int, epochs: int | None = None
+) -> int:
     """Env steps each branch of ``stage`` may spend: the paper's split, with hand-on.
 
     The paper gives every agent of every stage at most ``budget / (K * S)``
@@ -85,17 +88,24 @@ def branch_allowance(budget: int, used: int, stage: int, stages: int, branches: 
     still to come. Branches of one stage always get the same allowance (they
     compete with each other), and the last stage shares all that is left.
     An open-ended curriculum (``stages`` = :data:`OPEN_STAGES`) gives each
-    branch an epoch, ``budget // (branches * OPEN_EPOCHS)``, or its share
-    of what is left when that is less.
+    branch an epoch, ``budget // (branches * epochs)`` (``None``:
+    :data:`OPEN_EPOCHS`), or its share of what is left when that is less.
     """
     _check_stage(stage, stages)
     share = max(budget - used, 0) // _stage_shares(stage, stages, branches)
     if stages == OPEN_STAGES and stage < MAX_OPEN_STAGES - 1:
-        return min(budget // (branches * OPEN_EPOCHS), share)
+        return min(budget // (branches * (epochs or OPEN_EPOCHS)), share)
     return share
 
 
-def branch_seconds(budget: float, spent: float, stage: int, stages: int, branches: int) -> float:
+def branch_seconds(
+    budget: float,
+    spent: float,
+    stage: int,
+    stages: int,
+    branches: int,
+    epochs: int | None = None,
+) -> float:
     """Seconds each branch of ``stage`` may train: :func:`branch_allowance` for time.
 
     ``spent`` is what the finished branches took (training, evaluation and
@@ -104,7 +114,7 @@ def branch_seconds(budget: float, spent: float, stage: int, stages: int, branche
     _check_stage(stage, stages)
     share = max(budget - spent, 0.0) / _stage_shares(stage, stages, branches)
     if stages == OPEN_STAGES and stage < MAX_OPEN_STAGES - 1:
-        return min(budget / (branches * OPEN_EPOCHS), share)
+        return min(budget / (branches * (epochs or OPEN_EPOCHS)), share)
     return share
 
 

@@ -103,6 +103,7 @@ from amaze.curriculum.learner import Learner, branch_seed
 from amaze.curriculum.regimes import (
     CURRICULUM_REGIMES,
     MAX_OPEN_STAGES,
+    OPEN_EPOCHS,
     OPEN_STAGES,
     REGIMES,
     branch_allowance,
@@ -167,6 +168,8 @@ class CurriculumConfig(RunConfig):
     #: The regimes this trainer runs: the direct and curriculum ones; a trainer
     #: with a loop of its own for another regime (``coevolution``) adds it.
     supported_regimes: ClassVar[tuple[str, ...]] = ("direct", *CURRICULUM_REGIMES)
+    #: The trainer's default ``epochs`` of an open-ended curriculum.
+    default_epochs: ClassVar[int] = OPEN_EPOCHS
 
     regime: str = option("direct", "training regime", choices=REGIMES)
     curator: str | None = option(
@@ -185,6 +188,12 @@ class CurriculumConfig(RunConfig):
         None,
         "branches K per stage (default: 3 for edhucat and edens, 1 for interpolation)",
         metavar="K",
+    )
+    epochs: int | None = option(
+        None,
+        "an open-ended curriculum's epochs: each branch may spend budget / (K * epochs)"
+        " (default: 100 for evolution, 10 for RL)",
+        metavar="E",
     )
     rehearsal: int | None = option(
         None,
@@ -233,7 +242,7 @@ class CurriculumConfig(RunConfig):
             raise self.error(f"target {self.target!r}: {problem}") from None
         self._check_coevolution()
         if not self.is_curriculum:
-            for name in ("curator", "stages", "branches", "rehearsal", "replay"):
+            for name in ("curator", "stages", "branches", "epochs", "rehearsal", "replay"):
                 if getattr(self, name) is not None:
                     raise self.error(
                         f"{name} {getattr(self, name)!r} is for the curriculum regimes"
@@ -263,6 +272,17 @@ class CurriculumConfig(RunConfig):
         )
         if self.stages == OPEN_STAGES and self.regime == "interpolation":
             raise self.error("stages 0: an interpolation has a fixed number of stages (2 or more)")
+        if self.stages != OPEN_STAGES and self.epochs is not None:
+            raise self.error(
+                f"epochs {self.epochs!r} is for open-ended curricula (stages 0), not"
+                f" {self.stages} stages"
+            )
+        if self.stages == OPEN_STAGES:
+            if self.epochs is None:
+                self.epochs = self.default_epochs
+            self.epochs = check_integer(
+                "epochs", self.epochs, minimum=1, maximum=MAX_OPEN_STAGES, error=self.error
+            )
         self.rehearsal = check_integer(
             "rehearsal", self.rehearsal, minimum=0, maximum=MAX_REHEARSAL, error=self.error
         )
@@ -641,11 +661,15 @@ class CurriculumRun(Run):
                 allowance: tuple[int | None, float | None] = (None, None)
                 if c.budget_steps is not None:
                     used = self._steps()
-                    steps = branch_allowance(c.budget_steps, used, stage, c.stages, c.branches)
+                    steps = branch_allowance(
+                        c.budget_steps, used, stage, c.stages, c.branches, c.epochs
+                    )
                     allowance = (steps, None)
                 if budget_seconds is not None:
                     spent = self._seconds()
-                    seconds = branch_seconds(budget_seconds, spent, stage, c.stages, c.branches)
+                    seconds = branch_seconds(
+                        budget_seconds, spent, stage, c.stages, c.branches, c.epochs
+                    )
                     allowance = (allowance[0], seconds)
                 evaluator = Evaluator(c.robot, rotations(mazes), inputs=False)
                 lineage = self._lineage_mazes()
@@ -703,6 +727,7 @@ class CurriculumRun(Run):
             "stages": c.stages,
             "stages_played": len(self.records),
             "branches": c.branches,
+            "epochs": c.epochs,
             "rehearsal": c.rehearsal,
             "target": c.target,
             "replay_of": c.replay,

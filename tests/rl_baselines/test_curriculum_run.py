@@ -98,6 +98,19 @@ def test_ppo_fits_its_rollout_to_a_tiny_budget(tmp_path: Path) -> None:
     assert summary["env_steps"] <= 2000 and not (out / "tensorboard").exists()
 
 
+def test_the_edens_regime_runs_open_ended_epochs_of_the_papers_size(tmp_path: Path) -> None:
+    config = TrainConfig.from_dict({"regime": "edens"})
+    assert (config.stages, config.epochs, config.rehearsal) == (0, 10, 7)
+    out = tmp_path / "edens"
+    argv = ["--algo", "a2c", "--regime", "edens", "--budget-steps", "1200", "--eval-every", "40"]
+    assert main([*argv, "--no-tensorboard", "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    # 1200 // (3 * 10) = 40 steps a branch: two of A2C's rollouts (5 steps x 4 envs)
+    assert summary["stages_played"] >= 5 and summary["epochs"] == 10
+    assert summary["env_steps"] >= 1200 * 0.99
+    assert _decisions(out)[-1]["kind"] == "select"
+
+
 def test_the_interpolation_regime_is_the_loop_with_one_branch(tmp_path: Path) -> None:
     out = tmp_path / "interpolation"
     config = {"algo": "a2c", "regime": "interpolation", "stages": 3, "budget_steps": 300}

@@ -144,6 +144,20 @@ def test_a_directed_step_is_neutral_or_comes_closer_to_the_target() -> None:
     assert _fields(spec.to_string()) == _fields(TARGET)
 
 
+def test_directed_intersections_come_with_the_targets_clue() -> None:
+    curator = EdensCurator(context())
+    # A unicursive maze with lures and traps (dormant): turning intersections on
+    # would leave traps and no clue, unless the clue comes with them.
+    unicursive = MazeSpec.from_string("M7_9x9_U_l.25_L.25_t.5_T.5")
+    for seed in range(40):
+        mutant = curator.directed_step(unicursive, np.random.default_rng(seed))
+        assert mutant.unicursive or mutant.clue, mutant.to_string()
+    walk, rng = MazeSpec.from_string("M7_5x5_U"), np.random.default_rng(8)
+    for _ in range(200):
+        walk = curator.directed_step(walk, rng)
+        assert walk.unicursive or walk.clue, walk.to_string()
+
+
 def test_undirected_mutants_may_move_away_from_the_target() -> None:
     directed = EdensCurator(context())
     free = EdensCurator(context(directed=False))

@@ -274,6 +274,8 @@ def test_resume_of_a_finished_run_redoes_nothing(tmp_path: Path, finished: Path)
         ({"stages": -1}, "stages"),
         ({"regime": "interpolation", "curator": None, "stages": 0}, "interpolation has a fixed"),
         ({"rehearsal": 65}, "rehearsal"),
+        ({"epochs": 5}, "epochs 5 is for open-ended curricula"),
+        ({"stages": 0, "epochs": 0}, "epochs"),
         (
             {"regime": "direct", "curator": None, "stages": None, "branches": None, "rehearsal": 2},
             "rehearsal 2 is for",
@@ -297,6 +299,7 @@ def test_a_curriculum_config_records_its_defaults() -> None:
     assert config.rehearsal == 0 and not config.open_ended  # the paper's loop
     edens = ToyConfig.from_dict({"regime": "edens"})
     assert (edens.stages, edens.branches, edens.rehearsal, edens.open_ended) == (0, 3, 7, True)
+    assert edens.epochs == OPEN_EPOCHS and config.epochs is None
     direct = ToyConfig.from_dict({})
     assert (direct.curator, direct.stages, direct.branches) == (None, None, None)
 

@@ -186,6 +186,7 @@ class EvolutionLearner:
             )
         if budget_steps is None and budget_seconds is None:
             raise EvolutionConfigError("a training session needs budget_steps or budget_seconds")
+        backend = self._evaluator(mazes)
         session = self.session
         if (
             session is None
@@ -195,9 +196,7 @@ class EvolutionLearner:
         ):
             self.algorithm.forget_champion()
             session = self.session = Session(mazes, budget_steps, budget_seconds=budget_seconds)
-            backend = self._evaluator(mazes)
             self._inherit_champion(session, backend)
-        backend = self._evaluator(mazes)
         last_checkpoint: float | None = None
         while self._goes_on(session):
             started = time.perf_counter()

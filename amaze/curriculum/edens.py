@@ -24,9 +24,9 @@ Here the alternatives are the branches of the curriculum loop:
   corner); when the target has clues, a maze that gets intersections gets
   the target's clue with them (without, a lineage measured at 300 s, seed 2,
   was selected on mazes with traps and no clues, learnt to ignore clues and
-  never solved a validation maze). Undirected, every operator may apply, and mazes drift both ways:
-  measured at 60 s (CMA-ES, seed 7), they stayed at 5x5 to 6x6 over 45
-  stages, far from a 20x20 target. Once a maze has the target's fields, its
+  never solved a validation maze). Undirected, every operator may apply and
+  mazes drift both ways: measured at 60 s (CMA-ES, seed 7), they stayed at
+  5x5 to 6x6 over 45 stages, far from a 20x20 target. Once a maze has the target's fields, its
   mutants are the target's family with new walls or corners, and with the
   loop's rehearsal the lineage trains on a batch of them;
 * **select**: candidates that reached the goal in none of their own maze's

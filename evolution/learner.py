@@ -171,6 +171,7 @@ class EvolutionLearner:
         *,
         budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
+        progress: Callable[[int], None] | None = None,
     ) -> TrainingOutcome:
         """A training session on ``mazes`` (as given), or the rest of the one saved mid-way."""
         mazes = tuple(str(m) for m in mazes)
@@ -202,6 +203,8 @@ class EvolutionLearner:
             started = time.perf_counter()
             self._generation(session, backend)
             session.seconds += time.perf_counter() - started
+            if progress is not None:
+                progress(session.steps)
             if checkpoint is not None and self._goes_on(session):
                 if last_checkpoint is None or (
                     session.seconds - last_checkpoint >= self.checkpoint_seconds

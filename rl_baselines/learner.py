@@ -82,14 +82,24 @@ def new_sb3_model(
 class _SessionCallback(BaseCallback):
     """At the start of a rollout: evaluate when due, then checkpoint; stop once converged."""
 
-    def __init__(self, learner: SB3Learner, start: int, steps_before: int) -> None:
+    def __init__(
+        self,
+        learner: SB3Learner,
+        start: int,
+        steps_before: int,
+        progress: Callable[[int], None] | None = None,
+    ) -> None:
         super().__init__(verbose=0)
         self.learner = learner
         self.start = start
         self.steps_before = steps_before
+        self.progress = progress
 
     def _on_rollout_start(self) -> None:
-        self.learner._session_point(self.steps_before + self.model.num_timesteps - self.start)
+        steps = self.steps_before + self.model.num_timesteps - self.start
+        if self.progress is not None:
+            self.progress(int(steps))
+        self.learner._session_point(steps)
 
     def _on_step(self) -> bool:
         return not self.learner.session["converged"]
@@ -148,6 +158,7 @@ class SB3Learner:
         *,
         budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
+        progress: Callable[[int], None] | None = None,
     ) -> TrainingOutcome:
         """One session on ``mazes`` (continued if this learner was saved inside it).
 
@@ -187,7 +198,7 @@ class SB3Learner:
             self._session_point(session["steps"])
         if not session["converged"] and session["steps"] < target:
             start = int(model.num_timesteps)
-            callback = _SessionCallback(self, start, session["steps"])
+            callback = _SessionCallback(self, start, session["steps"], progress)
             model.learn(
                 total_timesteps=target - session["steps"],
                 callback=callback,

@@ -29,7 +29,17 @@ from amaze.curriculum.genome import new_seed
 from amaze.errors import one_line
 from amaze.maze.spec import MazeSpec
 
-__all__ = ["TerminalCurator"]
+__all__ = ["TerminalCurator", "suggested_mazes"]
+
+
+def suggested_mazes(context: CuratorContext, history: History, k: int) -> list[str]:
+    """What a person is offered for the ``k`` mazes: the parent's maze, each with a new seed.
+
+    Drawn from the context's stream for the stage, so a resumed run offers the same.
+    """
+    rng = context.rng(history.stage, "suggest")
+    parent = MazeSpec.from_string(history.mazes[0])
+    return [new_seed(parent, rng).to_string() for _ in range(k)]
 
 
 def _flags(values: Sequence[bool]) -> str:
@@ -76,12 +86,8 @@ class TerminalCurator:
         self._say(f"\n== stage {history.stage}: {k} maze(s) for the next branches ==")
         self._say(f"parent's maze: {parent}")
         self._say(f"target:        {self.context.target}")
-        rng = self.context.rng(history.stage, "suggest")
-        mazes = []
-        for branch in range(k):
-            suggestion = new_seed(MazeSpec.from_string(parent), rng).to_string()
-            mazes.append(self._maze(branch, k, suggestion))
-        return mazes
+        suggestions = suggested_mazes(self.context, history, k)
+        return [self._maze(branch, k, suggestion) for branch, suggestion in enumerate(suggestions)]
 
     # -- helpers --------------------------------------------------------------------
 

@@ -29,7 +29,9 @@ rollout), at the pace its own settings ask for; the caller saves the learner
 there. A learner saved that way and loaded again is *inside* its session:
 calling ``train`` with the same mazes and budget continues the session where
 it was saved instead of starting another one, which is how a killed run
-resumes mid-stage.
+resumes mid-stage. It also calls ``progress(steps)``, when given, with the
+env steps the session has spent so far, after every generation or rollout:
+what a live display (the browser curator's progress bars) shows.
 """
 
 from __future__ import annotations
@@ -67,6 +69,7 @@ class Learner(Protocol):
         *,
         budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
+        progress: Callable[[int], None] | None = None,
     ) -> TrainingOutcome:
         """Train on ``mazes`` for ``budget_steps`` env steps or ``budget_seconds`` seconds."""
         ...

@@ -68,8 +68,14 @@ def shown_stages(records: Sequence[StageRecord], rows: int = MAX_ROWS) -> list[S
     return [records[round(row * step)] for row in range(rows)]
 
 
-def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.Image:
-    """The picture of ``records`` (stages in order, each with its candidates)."""
+def render_curriculum(
+    records: Sequence[StageRecord], title: str = "", finished: bool = True
+) -> Image.Image:
+    """The picture of ``records`` (stages in order, each with its candidates).
+
+    The last stage's selected branch is marked final when the run is ``finished``
+    (a curriculum still being played shows its selections alike).
+    """
     records = shown_stages(records)
     columns = max((len(r.candidates) for r in records), default=1)
     cell_w, cell_h = THUMBNAIL + PAD, THUMBNAIL + CAPTION + PAD
@@ -92,7 +98,7 @@ def render_curriculum(records: Sequence[StageRecord], title: str = "") -> Image.
         draw.text((PAD, y_label), f"stage {record.stage}", fill=TEXT, font=small)
         spent = sum(c.env_steps for c in record.candidates)
         draw.text((PAD, y_label + 14), f"{_count(spent)} steps", fill=TEXT, font=small)
-        final = row == len(records) - 1
+        final = finished and row == len(records) - 1
         for candidate in record.candidates:
             x0, y0, x1, y1 = box(row, candidate.branch)
             maze = candidate.mazes[0]

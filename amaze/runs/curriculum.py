@@ -123,6 +123,7 @@ from amaze.validation import check_integer
 __all__ = [
     "DECISIONS_FILE",
     "MAX_BRANCHES",
+    "BranchProgress",
     "CurriculumConfig",
     "CurriculumRun",
     "Decision",
@@ -322,6 +323,21 @@ class CurriculumConfig(RunConfig):
             robot=self.robot,
             options=dict(self.curator_options),
         )
+
+
+@dataclass(frozen=True)
+class BranchProgress:
+    """How far a branch's training is, as :meth:`CurriculumRun.branch_progress` hears it."""
+
+    stage: int
+    branch: int
+    #: Env steps the branch has spent in its session so far.
+    steps: int
+    #: Its allowance: env steps and/or seconds (``None``: no limit of that kind).
+    budget_steps: int | None
+    budget_seconds: float | None
+    #: True once the branch is finished (trained, evaluated, its result written).
+    done: bool = False
 
 
 # -- decisions ------------------------------------------------------------------------
@@ -571,6 +587,15 @@ class CurriculumRun(Run):
     def learner_figures(self) -> dict[str, Any]:
         """The trainer's entries of ``summary.json`` (algorithm, robot...)."""
         return {}
+
+    def branch_progress(self, progress: BranchProgress) -> None:
+        """Hear how far the branch in training is (a live display overrides this).
+
+        Called when a branch starts (0 steps), after every generation or
+        rollout of its training, and when it is finished (``done``; also for
+        the branches a resumed run finds finished). It runs in the loop's
+        thread: it must return quickly.
+        """
 
     # -- the lifecycle's hooks --------------------------------------------------
 
@@ -925,6 +950,10 @@ class CurriculumRun(Run):
         """
         c = self.config
         folder = self._branch_folder(stage, branch)
+
+        def report(steps: int, done: bool = False) -> None:
+            self.branch_progress(BranchProgress(stage, branch, steps, *allowance, done=done))
+
         if (folder / "result.json").exists():
             candidate = self._read_candidate(folder)
             if candidate.mazes != (mazes[branch],) or candidate.stage != stage:
@@ -932,7 +961,9 @@ class CurriculumRun(Run):
                     f"branch result {str(folder / 'result.json')!r} is of another maze or stage"
                     " than the decisions say"
                 )
+            report(candidate.env_steps, done=True)
             return candidate
+        report(0)
         clock = [time.perf_counter()]
         checkpoint = folder / "checkpoint"
         if checkpoint.exists():
@@ -948,6 +979,7 @@ class CurriculumRun(Run):
             allowance[0],
             budget_seconds=allowance[1],
             checkpoint=lambda: learner.save(checkpoint),
+            progress=report,
         )
         clock.append(time.perf_counter())
         learner.save(folder / "agent")
@@ -1009,4 +1041,5 @@ class CurriculumRun(Run):
             }
         )
         shutil.rmtree(checkpoint, ignore_errors=True)
+        report(candidate.env_steps, done=True)
         return candidate

@@ -19,7 +19,12 @@ from amaze.curriculum.regimes import (
     curriculum_over,
 )
 from amaze.errors import AmazeError
-from amaze.runs.curriculum import DECISIONS_FILE, DecisionLog, decision_sequence
+from amaze.runs.curriculum import (
+    DECISIONS_FILE,
+    BranchProgress,
+    DecisionLog,
+    decision_sequence,
+)
 from tests.amaze.runs.toy_curriculum import ToyConfig, ToyLearner, ToyRun
 from tests.run_folders import snapshot
 
@@ -133,7 +138,7 @@ def test_a_run_killed_mid_branch_resumes_to_the_same_curriculum(
     calls = {"n": 0}
     original = ToyLearner.train
 
-    def dying(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None):
+    def dying(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None, progress=None):
         def checkpoint_then_die() -> None:
             checkpoint()
             calls["n"] += 1
@@ -157,6 +162,28 @@ def test_a_run_killed_mid_branch_resumes_to_the_same_curriculum(
         assert (out / relative / "agent/toy.json").read_text() == (
             branch / "agent/toy.json"
         ).read_text()
+
+
+def test_the_loop_reports_each_branchs_progress_live(tmp_path: Path) -> None:
+    heard: list[BranchProgress] = []
+
+    class Watched(ToyRun):
+        def branch_progress(self, progress: BranchProgress) -> None:
+            heard.append(progress)
+
+    Watched.fresh(CONFIG, tmp_path / "run")
+    # The first branch is allowed 6000 / (2 x 3) steps, spent in chunks of 500.
+    first = [(p.steps, p.done) for p in heard if (p.stage, p.branch) == (0, 0)]
+    assert first == [(0, False), (500, False), (1000, False), (1000, True)]
+    assert {p.budget_steps for p in heard if p.stage == 0} == {1000}
+    done = [(p.stage, p.branch) for p in heard if p.done]
+    assert done == [(0, 0), (1, 0), (1, 1), (2, 0), (2, 1)]
+    # a resumed run reports the branches it finds finished
+    heard.clear()
+    (tmp_path / "run/summary.json").unlink()
+    Watched.resume(tmp_path / "run")
+    assert [(p.stage, p.branch) for p in heard if p.done] == done
+    assert not [p for p in heard if not p.done]
 
 
 def test_a_replay_makes_the_recorded_decisions_without_the_curator(
@@ -487,7 +514,7 @@ def test_an_open_ended_run_resumes_and_replays_to_the_same_curriculum(
     calls = {"n": 0}
     original = ToyLearner.train
 
-    def dying(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None):
+    def dying(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None, progress=None):
         calls["n"] += 1
         if calls["n"] == 117:  # a branch of stage 58
             raise Interrupted

@@ -17,7 +17,7 @@ SLEEP = 2.0
 def test_the_training_session_is_counted_once(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    def train(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None):
+    def train(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None, progress=None):
         time.sleep(SLEEP)
         return TrainingOutcome(budget_steps, 0.0, False)  # reports none of it
 

@@ -34,7 +34,7 @@ class ToyLearner:
     def __init__(self, seed: int, trained: int = 0, session: dict | None = None) -> None:
         self.seed, self.trained, self.session = seed, trained, session
 
-    def train(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None):
+    def train(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None, progress=None):
         if not (self.session and self.session["mazes"] == list(mazes)):
             self.session = {"mazes": list(mazes), "budget": budget_steps, "spent": 0}
         self.budget_seconds = budget_seconds  # what the loop gave it, for the tests
@@ -43,6 +43,8 @@ class ToyLearner:
             chunk = min(500, limit - self.session["spent"])
             self.session["spent"] += chunk
             self.trained += chunk
+            if progress is not None:
+                progress(self.session["spent"])
             if checkpoint is not None:
                 checkpoint()
         spent, self.session = self.session["spent"], None

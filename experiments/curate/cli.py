@@ -1,0 +1,239 @@
+"""The ``amaze-curate`` command: an EDHuCAT run whose curator is a person at a browser page.
+
+::
+
+    amaze-curate --out runs/me                         # PPO, DD, 10 stages x 3 branches
+    amaze-curate --out runs/me --algo cmaes --budget-steps 600000 --stages 5 --branches 2
+    amaze-curate --resume runs/me                      # a killed server goes on
+    amaze-curate --replay runs/me --out runs/me-again  # the same decisions, no page
+
+It prints one line, the page's address with its token
+(``http://127.0.0.1:PORT/?token=...``; ``--port 0`` takes any free port and
+the line names it), opens the browser unless ``--no-browser``, and serves
+until interrupted (Ctrl-C). The run folder is the curriculum loop's
+(:mod:`amaze.runs.curriculum`): ``decisions.jsonl`` holds every decision with
+the seconds the person took. Bad input prints one line ``error: ...`` and
+exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import secrets
+import socket
+import sys
+import webbrowser
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from amaze.errors import UsageError
+from amaze.runs.command import CommandParser, run_command
+from amaze.runs.config import read_json_object
+from amaze.runs.curriculum import CurriculumRun
+from amaze.runs.lifecycle import CONFIG_FILE, Run
+
+__all__ = ["ALGORITHMS", "entry_point", "main"]
+
+#: The algorithms a person can curate for, each with its trainer.
+ALGORITHMS = ("ppo", "a2c", "cmaes", "neat")
+DEFAULT_PORT = 8765
+
+
+def trainer(algo: Any) -> type[Run]:
+    """The run class of the trainer of ``algo`` (imported only when asked for)."""
+    if algo in ("ppo", "a2c"):
+        from rl_baselines.train import SB3Run
+
+        return SB3Run
+    if algo in ("cmaes", "neat"):
+        from evolution.run import EvolutionRun
+
+        return EvolutionRun
+    raise UsageError(f"algorithm {algo!r} (choose from {', '.join(ALGORITHMS)})")
+
+
+def parser() -> CommandParser:
+    p = CommandParser(
+        prog="amaze-curate",
+        description="Curate a curriculum in your browser: an EDHuCAT run whose curator is you.",
+    )
+    run = p.add_argument_group("the run")
+    run.add_argument("--out", metavar="DIR", help="the run folder to create")
+    run.add_argument("--resume", metavar="DIR", help="continue the session in DIR")
+    run.add_argument(
+        "--replay", metavar="RUN_DIR", help="rerun RUN_DIR's decisions into --out, without a page"
+    )
+    run.add_argument("--algo", default="ppo", choices=ALGORITHMS, help="trainer (default: ppo)")
+    run.add_argument("--robot", default="DD", help="robot (default: DD)")
+    run.add_argument("--stages", type=int, default=10, metavar="S", help="stages (default: 10)")
+    run.add_argument(
+        "--branches", type=int, default=3, metavar="K", help="branches per stage (default: 3)"
+    )
+    run.add_argument(
+        "--budget-steps",
+        type=int,
+        metavar="N",
+        help="env steps of the whole run (default: the trainer's, 3000000)",
+    )
+    run.add_argument("--seed", type=int, default=0, help="the run's seed (default: 0)")
+    run.add_argument("--target", metavar="MAZE", help="the maze the curriculum leads to")
+    page = p.add_argument_group("the page")
+    page.add_argument(
+        "--host", default="127.0.0.1", help="address to serve on (default: 127.0.0.1)"
+    )
+    page.add_argument(
+        "--port", type=int, default=DEFAULT_PORT, help=f"port, 0 for any (default: {DEFAULT_PORT})"
+    )
+    page.add_argument(
+        "--no-browser", action="store_true", help="print the address without opening a browser"
+    )
+    return p
+
+
+def _fresh(args: argparse.Namespace) -> tuple[type[Run], Any, Path]:
+    """The trainer and the checked config of a new session in ``--out``."""
+    if not args.out:
+        raise UsageError("--out is required (or --resume DIR)")
+    run_class = trainer(args.algo)
+    data: dict[str, Any] = {
+        "algo": args.algo,
+        "robot": args.robot,
+        "seed": args.seed,
+        "regime": "edhucat",
+        "curator": "human",
+        "stages": args.stages,
+        "branches": args.branches,
+    }
+    if args.budget_steps is not None:
+        data["budget_steps"] = args.budget_steps
+    if args.target is not None:
+        data["target"] = args.target
+    config = run_class.config_class.from_dict(data).validate()
+    out = Path(args.out)
+    Run._check_new_folder(out, config.error)
+    return run_class, config, out
+
+
+def _resumed(folder: str) -> tuple[type[Run], Any, Path]:
+    """The trainer and the config of the session in ``folder``, which must be a human one."""
+    out = Path(folder)
+    if not (out / CONFIG_FILE).is_file():
+        raise UsageError(f"{folder!r} holds no run (no {CONFIG_FILE})")
+    data = read_json_object(out / CONFIG_FILE, UsageError, "run config")
+    run_class = trainer(data.get("algo"))
+    config = run_class.read_config(out)
+    if getattr(config, "curator", None) != "human":
+        raise UsageError(
+            f"{folder!r} holds a run whose curator is {getattr(config, 'curator', None)!r},"
+            " not a person (resume it with its own command)"
+        )
+    return run_class, config, out
+
+
+def _describe(config: Any) -> dict[str, Any]:
+    return {
+        "algo": config.algo,
+        "robot": config.robot,
+        "seed": config.seed,
+        "stages": config.stages,
+        "branches": config.branches,
+        "budget_steps": config.budget_steps,
+        "target": config.target,
+    }
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    """A listening socket on ``host:port`` (port 0: a free one)."""
+    try:
+        family = socket.AF_INET6 if ipaddress.ip_address(host).version == 6 else socket.AF_INET
+    except ValueError:
+        family = socket.AF_INET
+    if not 0 <= port <= 65535:
+        raise UsageError(f"port {port} is not in 0..65535")
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as problem:
+        sock.close()
+        raise UsageError(f"cannot serve on {host}:{port}: {problem.strerror or problem}") from None
+    sock.listen(64)
+    return sock
+
+
+def _serve(args: argparse.Namespace, run_class: type[Run], config: Any, out: Path) -> int:
+    import uvicorn
+
+    from experiments.curate.server import create_app
+    from experiments.curate.session import CurationSession
+
+    base = run_class.run_class_for(config)
+    assert issubclass(base, CurriculumRun)
+    session = CurationSession(out, _describe(config))
+    browser_run = session.run_class(base)
+    sock = _listen(args.host, args.port)
+    token = secrets.token_urlsafe(24)
+    app = create_app(session, token)
+    host, port = sock.getsockname()[:2]
+    shown = f"[{host}]" if ":" in host else host
+    url = f"http://{shown}:{port}/?token={token}"
+    if not ipaddress.ip_address(host).is_loopback:
+        print(
+            f"warning: serving on {host}, not the loopback address: anyone who can reach it"
+            " and has the address above can curate this run",
+            file=sys.stderr,
+        )
+    print(url, flush=True)
+    if args.resume:
+        session.start(lambda: browser_run.resume(out))
+    else:
+        session.start(lambda: browser_run.fresh(config, out))
+    print(
+        f"amaze-curate: run folder {out}; Ctrl-C stops the page (amaze-curate --resume {out}"
+        " goes on)",
+        file=sys.stderr,
+        flush=True,
+    )
+    if not args.no_browser:
+        webbrowser.open(url)
+    server = uvicorn.Server(
+        uvicorn.Config(app, log_level="warning", lifespan="off", access_log=False)
+    )
+    try:
+        server.run(sockets=[sock])
+    finally:
+        session.close()
+    return 1 if session.phase == "failed" else 0
+
+
+def _run(argv: Sequence[str]) -> int:
+    args = parser().parse_args(list(argv))
+    if args.replay:
+        if not args.out:
+            raise UsageError("--replay needs --out, the folder of the new run")
+        data = read_json_object(Path(args.replay) / CONFIG_FILE, UsageError, "run config")
+        result = trainer(data.get("algo")).replay(args.replay, args.out)
+        print(result.headline)
+        print(f"run folder: {result.out} ({', '.join(result.outputs)})")
+        return 0
+    if args.resume:
+        run_class, config, out = _resumed(args.resume)
+    else:
+        run_class, config, out = _fresh(args)
+    return _serve(args, run_class, config, out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; return the exit status (2 for bad input)."""
+    return run_command(lambda: _run(sys.argv[1:] if argv is None else argv))
+
+
+def entry_point() -> NoReturn:
+    """Console-script entry point."""
+    raise SystemExit(main())
+
+
+if __name__ == "__main__":
+    entry_point()

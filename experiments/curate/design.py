@@ -1,0 +1,207 @@
+"""Designing a maze on the page: its fields as form controls, and what it is.
+
+The page never parses maze strings itself: it sends a string (typed) or the
+form's fields (a control changed) and gets back a :func:`maze_card`, the
+canonical string, its fields for the controls, and the figures a curator
+judges a maze by (class, Surprisingness, Deceptiveness, path length,
+intersections, signs, difficulty) with how it differs from the maze the
+agent trained on last. Bad input raises :class:`DesignError` naming the
+field or the string's bad token, shown inline next to the field.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from amaze.curriculum.genome import difficulty_profile, maze_distance, new_seed
+from amaze.errors import AmazeError, MazeStringWarning, one_line
+from amaze.maze.maze import Maze
+from amaze.maze.metrics import compute_metrics
+from amaze.maze.signs import Sign
+from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec, StartLocation
+
+__all__ = [
+    "MAX_STRING_LENGTH",
+    "DesignError",
+    "maze_card",
+    "maze_fields",
+    "spec_from_fields",
+    "with_new_seed",
+]
+
+#: Longest maze string the page accepts (the longest sensible one is under 100 characters).
+MAX_STRING_LENGTH = 300
+#: The sign kinds, as the form names them, with their spec fields (signs, probability).
+SIGN_KINDS = {"clue": ("clue", None), "lure": ("lure", "p_lure"), "trap": ("trap", "p_trap")}
+CORNERS = tuple(corner.shorthand for corner in StartLocation)
+
+
+class DesignError(AmazeError):
+    """A maze the page sent that cannot be built: the message names the field or token."""
+
+
+def parse_maze(text: Any) -> tuple[MazeSpec, list[str]]:
+    """The spec of a maze string and the parser's warnings (tokens without effect)."""
+    if not isinstance(text, str):
+        raise DesignError(f"maze string {text!r} is not text")
+    if len(text) > MAX_STRING_LENGTH:
+        raise DesignError(f"maze string of {len(text)} characters (at most {MAX_STRING_LENGTH})")
+    if not text.strip():
+        raise DesignError("the maze string is empty")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", MazeStringWarning)
+        try:
+            spec = MazeSpec.from_string(text)
+        except (ValueError, TypeError) as problem:
+            raise DesignError(one_line(problem)) from None
+    notes = [one_line(w.message) for w in caught if issubclass(w.category, MazeStringWarning)]
+    return spec, notes
+
+
+def maze_fields(spec: MazeSpec) -> dict[str, Any]:
+    """The form's controls for ``spec``: size, seed, corner, unicursive, each sign kind.
+
+    A kind with several sign types shows its first one; the others are kept
+    as they are by :func:`spec_from_fields`.
+    """
+    fields: dict[str, Any] = {
+        "width": spec.width,
+        "height": spec.height,
+        "seed": spec.seed,
+        "start": spec.start.shorthand,
+        "unicursive": spec.unicursive,
+    }
+    for kind, (signs_field, probability_field) in SIGN_KINDS.items():
+        signs: tuple[Sign, ...] = getattr(spec, signs_field)
+        fields[kind] = bool(signs)
+        fields[f"{kind}_value"] = signs[0].value if signs else 1.0 if kind == "clue" else 0.5
+        if probability_field is not None:
+            probability = getattr(spec, probability_field)
+            fields[f"p_{kind}"] = probability if probability is not None else 0.25
+    return fields
+
+
+def _number(fields: Mapping[str, Any], name: str, kind: type) -> Any:
+    value = fields.get(name)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise DesignError(f"{name} {value!r} is not a number")
+    if kind is int and value != int(value):
+        raise DesignError(f"{name} {value!r} is not a whole number")
+    return kind(value)
+
+
+def spec_from_fields(fields: Any, base: str | None = None) -> MazeSpec:
+    """The spec the form's ``fields`` describe (``base``: the string whose other signs stay)."""
+    if not isinstance(fields, Mapping):
+        raise DesignError(f"maze fields {fields!r} are not an object")
+    kept = parse_maze(base)[0] if base else MazeSpec(seed=0)
+    start = fields.get("start")
+    if start not in CORNERS:
+        raise DesignError(f"start {start!r} is not one of {', '.join(CORNERS)}")
+    changes: dict[str, Any] = {"start": StartLocation.from_shorthand(start)}
+    for name in ("width", "height"):
+        size = _number(fields, name, int)
+        if not MIN_SIZE <= size <= MAX_SIZE:
+            raise DesignError(f"{name} {size} is not in {MIN_SIZE}..{MAX_SIZE}")
+        changes[name] = size
+    changes["seed"] = _number(fields, "seed", int)
+    if changes["seed"] < 0:
+        raise DesignError(f"seed {changes['seed']} is negative")
+    unicursive = fields.get("unicursive")
+    if not isinstance(unicursive, bool):
+        raise DesignError(f"unicursive {unicursive!r} is not true or false")
+    changes["unicursive"] = unicursive
+    for kind, (signs_field, probability_field) in SIGN_KINDS.items():
+        on = fields.get(kind)
+        if not isinstance(on, bool):
+            raise DesignError(f"{kind} {on!r} is not true or false")
+        signs: tuple[Sign, ...] = getattr(kept, signs_field)
+        if not on:
+            changes[signs_field] = ()
+            continue
+        value = _number(fields, f"{kind}_value", float)
+        if not 0 < value <= 1:
+            raise DesignError(f"{kind} lightness {value} is not in ]0, 1]")
+        first = Sign(signs[0].shape if signs else "arrow", value)
+        changes[signs_field] = (first, *signs[1:])
+        if probability_field is not None:
+            probability = _number(fields, f"p_{kind}", float)
+            if not 0 < probability <= 1:
+                raise DesignError(f"{kind} probability {probability} is not in ]0, 1]")
+            changes[probability_field] = probability
+    try:
+        return kept.where(**changes)
+    except (ValueError, TypeError) as problem:
+        raise DesignError(one_line(problem)) from None
+
+
+def with_new_seed(text: str, rng: np.random.Generator) -> str:
+    """``text`` with another seed drawn from ``rng``: new walls, same family."""
+    return new_seed(parse_maze(text)[0], rng).to_string()
+
+
+def _changes(before: MazeSpec, after: MazeSpec) -> list[str]:
+    """What differs from ``before`` to ``after``, in words."""
+    said = []
+    if (before.width, before.height) != (after.width, after.height):
+        said.append(f"size {before.width}x{before.height} → {after.width}x{after.height}")
+    if before.start != after.start:
+        said.append(f"start {before.start.shorthand} → {after.start.shorthand}")
+    if before.unicursive != after.unicursive:
+        said.append("unicursive" if after.unicursive else "no longer unicursive")
+    for kind, (signs_field, probability_field) in SIGN_KINDS.items():
+        old, new = getattr(before, signs_field), getattr(after, signs_field)
+        if old and not new:
+            said.append(f"{kind}s removed")
+        elif new and not old:
+            said.append(f"{kind}s added")
+        elif old and new:
+            if old[0].value != new[0].value:
+                said.append(f"{kind} lightness {old[0].value:g} → {new[0].value:g}")
+            if probability_field is not None:
+                p_old, p_new = getattr(before, probability_field), getattr(after, probability_field)
+                if p_old != p_new:
+                    said.append(f"{kind} probability {p_old:g} → {p_new:g}")
+    if before.seed != after.seed and not said:
+        said.append("same description, new seed")
+    return said or ["the same maze"]
+
+
+def maze_card(text: str, reference: str | None = None) -> dict[str, Any]:
+    """What the page shows of a maze: canonical string, fields, figures, comparison.
+
+    ``reference`` is the maze the agent trained on last (the parent's): the
+    card says how this maze differs from it and by how much its difficulty
+    (:func:`~amaze.curriculum.genome.difficulty_profile`'s score) changes.
+    """
+    spec, notes = parse_maze(text)
+    maze = Maze.generate(spec)
+    metrics = compute_metrics(maze)
+    profile = difficulty_profile(maze)
+    card: dict[str, Any] = {
+        "string": spec.to_string(),
+        "fields": maze_fields(spec),
+        "class": maze.maze_class.label,
+        "surprisingness": round(metrics.surprisingness, 4),
+        "deceptiveness": round(metrics.deceptiveness, 4),
+        "path_length": maze.path_length,
+        "intersections": maze.n_intersections,
+        "clues": len(maze.clues),
+        "lures": len(maze.lures),
+        "traps": len(maze.traps),
+        "difficulty": round(profile.score(), 3),
+        "notes": notes,
+    }
+    if reference is not None:
+        before = parse_maze(reference)[0]
+        card["comparison"] = {
+            "reference": before.to_string(),
+            "changes": _changes(before, spec),
+            "difficulty": round(difficulty_profile(before).score(), 3),
+            "distance": round(maze_distance(before, spec), 3),
+        }
+    return card

@@ -1,0 +1,502 @@
+// The curation page: draws the session's state (/api/state, polled every second)
+// and sends the person's answers. The server checks everything; this script only shows.
+"use strict";
+
+const CSRF = document.querySelector('meta[name="csrf-token"]').content;
+const POLL_MS = 1000;
+let state = null;
+let shownQuestion = null; // the id of the question whose form is on the page
+let shownHistory = "";
+let shownTraining = "";
+
+// -- small helpers ---------------------------------------------------------------
+
+function el(tag, attributes = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attributes)) {
+    if (value === null || value === undefined || value === false) continue;
+    if (key === "class") node.className = value;
+    else if (key === "text") node.textContent = value;
+    else if (key.startsWith("on")) node.addEventListener(key.slice(2), value);
+    else node.setAttribute(key, value === true ? "" : value);
+  }
+  for (const child of children.flat()) {
+    if (child === null || child === undefined) continue;
+    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return node;
+}
+
+const fixed = (value, digits = 2) =>
+  value === null || value === undefined || Number.isNaN(value) ? "–" : Number(value).toFixed(digits);
+const signed = (value, digits = 2) => (value >= 0 ? "+" : "") + fixed(value, digits);
+const count = (n) => (n >= 1e6 ? `${fixed(n / 1e6, 2)} M` : n >= 1e3 ? `${fixed(n / 1e3, 1)} k` : `${n}`);
+
+function duration(seconds) {
+  if (seconds === null || seconds === undefined) return "–";
+  seconds = Math.round(seconds);
+  if (seconds < 60) return `${seconds} s`;
+  const minutes = Math.floor(seconds / 60);
+  if (minutes < 60) return `${minutes} min ${seconds % 60} s`;
+  return `${Math.floor(minutes / 60)} h ${minutes % 60} min`;
+}
+
+function previewUrl(maze) {
+  return `/api/maze.png?string=${encodeURIComponent(maze)}`;
+}
+
+async function post(path, body) {
+  const response = await fetch(path, {
+    method: "POST",
+    headers: { "Content-Type": "application/json", "X-CSRF-Token": CSRF },
+    body: JSON.stringify(body),
+  });
+  let data = {};
+  try {
+    data = await response.json();
+  } catch (_) {
+    data = { error: `the server answered ${response.status}` };
+  }
+  return { ok: response.ok, status: response.status, data };
+}
+
+// -- the state loop ----------------------------------------------------------------
+
+async function poll() {
+  let next = null;
+  try {
+    const response = await fetch("/api/state", { cache: "no-store" });
+    if (response.status === 403) {
+      showLost("This page needs the address with its token that amaze-curate printed.");
+      return;
+    }
+    next = await response.json();
+  } catch (_) {
+    showLost("The server does not answer. Restart it with amaze-curate --resume and reload.");
+  }
+  if (next) {
+    const changed = !state || next.version !== state.version;
+    state = next;
+    if (changed) draw();
+    else tick();
+  }
+  setTimeout(poll, POLL_MS);
+}
+
+function showLost(message) {
+  document.getElementById("phase").textContent = "disconnected";
+  document.getElementById("phase").className = "badge failed";
+  let banner = document.getElementById("lost");
+  if (!banner) {
+    banner = el("p", { id: "lost", class: "error banner" });
+    document.querySelector("main").prepend(banner);
+  }
+  banner.textContent = message;
+}
+
+function draw() {
+  const lost = document.getElementById("lost");
+  if (lost) lost.remove();
+  drawHeader();
+  const view = document.getElementById("view");
+  const question = state.question;
+  if (state.phase === "question" && question) {
+    if (shownQuestion !== question.id) {
+      shownQuestion = question.id;
+      shownTraining = "";
+      view.replaceChildren(question.kind === "select" ? selectView(question) : generateView(question));
+      window.scrollTo(0, 0); // a new question: its top first
+    }
+  } else {
+    shownQuestion = null;
+    if (state.phase === "finished") view.replaceChildren(finalView());
+    else if (state.phase === "failed") view.replaceChildren(failedView());
+    else drawTraining(view);
+  }
+  drawHistory();
+  tick();
+}
+
+function tick() {
+  // What changes with time alone: how long a question has waited.
+  const waiting = document.getElementById("waiting");
+  if (waiting && state.question) waiting.textContent = `waiting ${duration(state.question.waiting)}`;
+}
+
+function drawHeader() {
+  const run = state.run;
+  document.getElementById("run-description").textContent =
+    `${run.algo.toUpperCase()}, robot ${run.robot}, ${run.stages} stages × ${run.branches} branches, ` +
+    `${count(run.budget_steps)} env steps, seed ${run.seed} · target ${run.target}`;
+  const phase = document.getElementById("phase");
+  const names = {
+    starting: "starting",
+    training: "training",
+    question: "your turn",
+    finished: "finished",
+    failed: "failed",
+  };
+  phase.textContent = names[state.phase] || state.phase;
+  phase.className = `badge ${state.phase}`;
+  const training = state.training;
+  const fraction = training.budget_steps ? Math.min(1, training.steps / training.budget_steps) : 0;
+  document.getElementById("overall-bar").style.width = `${(100 * fraction).toFixed(1)}%`;
+  const eta = state.phase === "finished" ? "" : ` · training left ≈ ${duration(training.eta_seconds)}`;
+  document.getElementById("overall-text").textContent =
+    `${count(training.steps)} / ${count(training.budget_steps)} steps${eta}`;
+}
+
+// -- training ------------------------------------------------------------------
+
+function drawTraining(view) {
+  const training = state.training;
+  const key = JSON.stringify([state.phase, training.stage, training.branches]);
+  if (key === shownTraining) return;
+  shownTraining = key;
+  if (training.stage === null) {
+    view.replaceChildren(el("h2", { text: "Starting the run…" }),
+      el("p", { class: "muted", text: "The first agent is being built." }));
+    return;
+  }
+  const stageMazes = stageMazesOf(training.stage);
+  const rows = training.branches.map((b) => {
+    const fraction = b.budget_steps ? Math.min(1, b.steps / b.budget_steps) : b.done ? 1 : 0;
+    const maze = stageMazes[b.branch];
+    return el("div", { class: "branch-progress", "data-branch": b.branch },
+      maze ? el("img", { class: "thumb", src: previewUrl(maze), alt: `maze of branch ${b.branch}` }) : null,
+      el("div", { class: "grow" },
+        el("div", {}, el("strong", { text: `Branch ${b.branch}` }),
+          maze ? el("code", { class: "maze-string", text: ` ${maze}` }) : null),
+        el("div", { class: "bar" }, el("div", { style: `width:${(100 * fraction).toFixed(1)}%` })),
+        el("div", { class: "muted" },
+          b.done ? `done: ${count(b.steps)} steps`
+            : `${count(b.steps)} / ${count(b.budget_steps)} steps · ≈ ${duration(b.eta_seconds)} left`)));
+  });
+  const rate = training.steps_per_second ? ` at about ${count(training.steps_per_second)} steps/s` : "";
+  view.replaceChildren(
+    el("h2", { id: "training", text: `Training stage ${training.stage}` }),
+    el("p", { class: "muted", text: `Each branch is a copy of the chosen agent, trained on its own maze in its 4 rotations${rate}. The next question comes when all are done.` }),
+    el("div", { class: "progress-list" }, rows));
+}
+
+function stageMazesOf(stage) {
+  const decision = state.history.decisions.find((d) => d.kind === "generate" && d.stage === stage);
+  return decision ? decision.mazes : [];
+}
+
+// -- choosing an agent -----------------------------------------------------------
+
+function selectView(question) {
+  const final = question.stage >= state.run.stages;
+  const cards = question.candidates.map((c) => candidateCard(question, c));
+  return el("div", {},
+    el("h2", { text: final ? "Choose the final agent" : `Stage ${question.stage}: choose the agent that goes on` }),
+    el("p", { class: "muted" },
+      final ? "The chosen agent is the run's result: it is then tested on the standard evaluation suite."
+        : "Its copies train on the mazes you design next. Each agent is shown on every maze of the stage. ",
+      "Success: the goal reached (a dot per start corner, green when reached); R̄: the paper's normalised reward, 1 on the shortest path. ",
+      el("span", { id: "waiting" })),
+    el("div", { class: "candidates" }, cards),
+    el("p", { id: "answer-error", class: "error", role: "alert" }));
+}
+
+function candidateCard(question, c) {
+  const episodes = c.results.map((r) => episodeTile(question.stage - 1, c.branch, r));
+  return el("article", { class: "candidate card", "data-branch": c.branch },
+    el("header", {},
+      el("h3", { text: `Branch ${c.branch}` }),
+      el("span", { class: c.success_rate === 1 ? "pill good" : "pill" }, `${fixed(100 * c.success_rate, 0)}% on its maze`)),
+    el("table", { class: "figures" },
+      el("tr", {}, el("th", { text: "success, its maze" }), el("td", { text: fixed(c.success_rate) })),
+      el("tr", {}, el("th", { text: "R̄, its maze" }), el("td", { text: signed(c.mean_reward, 3) })),
+      el("tr", {}, el("th", { text: "success, all the stage's mazes" }), el("td", { text: fixed(c.overall_success_rate) })),
+      el("tr", {}, el("th", { text: "R̄, all the stage's mazes" }), el("td", { text: signed(c.overall_mean_reward, 3) })),
+      el("tr", {}, el("th", { text: "env steps (lineage)" }), el("td", { text: `${count(c.env_steps)} (${count(c.lineage_steps)})` })),
+      el("tr", {}, el("th", { text: "converged" }), el("td", { text: c.converged ? "yes" : "no" })),
+      el("tr", {}, el("th", { text: "lineage" }), el("td", { text: c.lineage.join(" → ") }))),
+    el("div", { class: "episodes" }, episodes),
+    el("button", {
+      class: "choose primary",
+      onclick: (event) => choose(question, c.branch, event.target),
+    }, `Choose branch ${c.branch}`));
+}
+
+function episodeTile(stage, branch, result) {
+  const own = result.index === branch;
+  const rotations = result.success.map((ok, k) =>
+    el("span", { class: ok ? "dot good" : "dot bad", title: `rotation ${k}: ${ok ? "reached" : "not reached"}, R̄ ${signed(result.paper_reward[k])}, ${result.steps[k]} steps` }));
+  const figure = el("figure", { class: own ? "episode own" : "episode" },
+    el("div", { class: "animation loading", text: "playing…" }),
+    el("figcaption", {},
+      el("div", {}, own ? el("strong", { text: "its maze" }) : `branch ${result.index}'s maze`),
+      el("div", { class: "rotations" }, rotations, ` R̄ ${signed(result.mean_reward)}`),
+      el("div", { class: "muted episode-figures" })));
+  fetch(`/api/episode/${stage}/${branch}/${result.index}`, { cache: "no-store" })
+    .then((response) => response.json().then((data) => ({ ok: response.ok, data })))
+    .then(({ ok, data }) => {
+      const box = figure.querySelector(".animation");
+      if (!ok) {
+        box.textContent = data.error || "no animation";
+        return;
+      }
+      box.replaceWith(el("img", { src: data.gif, alt: `branch ${branch} on maze ${result.index}`, class: "animation" }));
+      figure.querySelector(".episode-figures").textContent =
+        `${data.success ? "reached" : "not reached"} in ${data.steps} steps, ${data.collisions} collisions`;
+    })
+    .catch(() => { figure.querySelector(".animation").textContent = "no animation"; });
+  return figure;
+}
+
+async function choose(question, branch, button) {
+  document.querySelectorAll("button.choose").forEach((b) => (b.disabled = true));
+  button.textContent = "Sending…";
+  const { ok, status, data } = await post("/api/answer", { question: question.id, answer: branch });
+  if (!ok) {
+    document.getElementById("answer-error").textContent = data.error;
+    document.querySelectorAll("button.choose").forEach((b) => (b.disabled = false));
+    button.textContent = `Choose branch ${branch}`;
+    if (status === 409) shownQuestion = null;
+  }
+}
+
+// -- designing mazes --------------------------------------------------------------
+
+function generateView(question) {
+  editors.clear();
+  const parent = question.parent;
+  const forms = question.suggestions.map((maze, index) => mazeEditor(question, index, maze));
+  const submit = el("button", { id: "submit-mazes", class: "primary", disabled: true,
+    onclick: () => submitMazes(question) }, `Train on these ${question.k} mazes`);
+  return el("div", {},
+    el("h2", { text: `Stage ${question.stage}: design ${question.k} maze${question.k > 1 ? "s" : ""}` }),
+    el("p", { class: "muted" },
+      `Each maze trains one copy of the chosen agent (lineage ${question.lineage.join(" → ")}) in its 4 rotations. `,
+      "Type a maze string or use the controls; nothing is sent until every maze is valid. ",
+      el("span", { id: "waiting" })),
+    el("div", { class: "references" },
+      referenceCard("The agent's last maze", parent, null),
+      referenceCard("The target", question.target, "Still to go from the last maze: ")),
+    el("div", { class: "editors" }, forms),
+    el("div", { class: "actions" }, submit, el("span", { id: "answer-error", class: "error", role: "alert" })));
+}
+
+function referenceCard(title, card, lead) {
+  return el("article", { class: "card reference" },
+    el("h3", { text: title }),
+    el("div", { class: "reference-body" },
+      el("img", { class: "preview", src: previewUrl(card.string), alt: title }),
+      el("div", {},
+        el("code", { class: "maze-string", text: card.string }),
+        figuresList(card),
+        lead && card.comparison ? el("p", { class: "muted", text: lead + card.comparison.changes.join(", ") }) : null)));
+}
+
+function figuresList(card) {
+  return el("dl", { class: "maze-figures" },
+    el("dt", { text: "class" }), el("dd", { text: card.class }),
+    el("dt", { text: "path" }), el("dd", { text: `${card.path_length} cells` }),
+    el("dt", { text: "intersections" }), el("dd", { text: card.intersections }),
+    el("dt", { text: "signs" }), el("dd", { text: `${card.clues} clues, ${card.lures} lures, ${card.traps} traps` }),
+    el("dt", { text: "Surprisingness" }), el("dd", { text: fixed(card.surprisingness, 3) }),
+    el("dt", { text: "Deceptiveness" }), el("dd", { text: fixed(card.deceptiveness, 3) }),
+    el("dt", { text: "difficulty" }), el("dd", { text: fixed(card.difficulty, 2) }));
+}
+
+const editors = new Map(); // index -> {valid, string}
+
+function mazeEditor(question, index, maze) {
+  const id = (name) => `maze-${name}-${index}`;
+  const number = (name, label, min, max, step) =>
+    el("label", {}, label, el("input", { id: id(name), type: "number", min, max, step, "data-field": name }));
+  const check = (name, label) => el("label", { class: "check" }, el("input", { id: id(name), type: "checkbox", "data-field": name }), label);
+  const signRow = (kind, probability) =>
+    el("div", { class: "sign-row" }, check(kind, `${kind}s`),
+      number(`${kind}_value`, "lightness", 0.05, 1, 0.05),
+      probability ? number(`p_${kind}`, "probability", 0.05, 1, 0.05) : null);
+  const editor = el("article", { class: "card editor", id: id("editor"), "data-index": index },
+    el("h3", { text: `Maze ${index + 1}` }),
+    el("label", { class: "string" }, "maze string",
+      el("input", { id: id("string"), class: "maze-input", type: "text", value: maze, spellcheck: "false", autocomplete: "off" })),
+    el("p", { id: id("error"), class: "error inline", role: "alert" }),
+    el("div", { class: "editor-body" },
+      el("div", {},
+        el("img", { id: id("preview"), class: "preview", alt: `preview of maze ${index + 1}` }),
+        el("div", { id: id("figures") })),
+      el("fieldset", { class: "controls" },
+        el("legend", { text: "fields" }),
+        el("div", { class: "row" }, number("width", "width", 2, 100, 1), number("height", "height", 2, 100, 1)),
+        el("div", { class: "row" },
+          el("label", {}, "start", el("select", { id: id("start"), "data-field": "start" },
+            ["SW", "SE", "NE", "NW"].map((c) => el("option", { value: c, text: c })))),
+          check("unicursive", "unicursive")),
+        signRow("clue", false), signRow("lure", true), signRow("trap", true),
+        el("div", { class: "row" },
+          number("seed", "seed", 0, 2147483647, 1),
+          el("button", { id: id("new-seed"), type: "button", onclick: () => update(question, index, { new_seed: true }) }, "new seed")))));
+  editors.set(index, { valid: false, string: maze });
+  const input = editor.querySelector(".maze-input");
+  let timer = null;
+  input.addEventListener("input", () => {
+    clearTimeout(timer);
+    editors.get(index).valid = false;
+    refreshSubmit(question);
+    timer = setTimeout(() => update(question, index, {}), 300);
+  });
+  editor.querySelectorAll("[data-field]").forEach((control) =>
+    control.addEventListener("change", () => update(question, index, { fields: readFields(editor) })));
+  setTimeout(() => update(question, index, {}), 0);
+  return editor;
+}
+
+function readFields(editor) {
+  const fields = {};
+  editor.querySelectorAll("[data-field]").forEach((control) => {
+    const name = control.dataset.field;
+    if (control.type === "checkbox") fields[name] = control.checked;
+    else if (control.type === "number") fields[name] = control.value === "" ? null : Number(control.value);
+    else fields[name] = control.value;
+  });
+  return fields;
+}
+
+function writeFields(editor, fields) {
+  editor.querySelectorAll("[data-field]").forEach((control) => {
+    const value = fields[control.dataset.field];
+    if (control.type === "checkbox") control.checked = Boolean(value);
+    else control.value = value;
+  });
+  for (const kind of ["clue", "lure", "trap"]) {
+    editor.querySelectorAll(`[data-field$="_${kind}"], [data-field="${kind}_value"]`).forEach((c) => {
+      c.disabled = !fields[kind];
+    });
+  }
+}
+
+const pending = new Map(); // index -> request counter, so a late answer never overwrites a newer one
+
+async function update(question, index, extra) {
+  const editor = document.getElementById(`maze-editor-${index}`);
+  if (!editor) return;
+  const input = document.getElementById(`maze-string-${index}`);
+  const errorBox = document.getElementById(`maze-error-${index}`);
+  const counter = (pending.get(index) || 0) + 1;
+  pending.set(index, counter);
+  const body = { string: input.value, reference: question.parent.string, ...extra };
+  const { ok, data } = await post("/api/maze", body);
+  if (pending.get(index) !== counter || shownQuestion !== question.id) return;
+  const entry = editors.get(index);
+  if (!ok) {
+    entry.valid = false;
+    errorBox.textContent = data.error;
+    input.setAttribute("aria-invalid", "true");
+    editor.classList.add("invalid");
+    refreshSubmit(question);
+    return;
+  }
+  entry.valid = true;
+  entry.string = data.string;
+  if (extra.fields || extra.new_seed || document.activeElement !== input) input.value = data.string;
+  input.removeAttribute("aria-invalid");
+  editor.classList.remove("invalid");
+  errorBox.textContent = data.notes.length ? `note: ${data.notes.join("; ")}` : "";
+  errorBox.classList.toggle("note", data.notes.length > 0);
+  writeFields(editor, data.fields);
+  document.getElementById(`maze-preview-${index}`).src = previewUrl(data.string);
+  const comparison = data.comparison;
+  document.getElementById(`maze-figures-${index}`).replaceChildren(
+    figuresList(data),
+    comparison ? el("p", { class: "comparison" },
+      el("strong", { text: "vs the agent's last maze: " }), comparison.changes.join(", "),
+      `; difficulty ${fixed(comparison.difficulty)} → ${fixed(data.difficulty)}`) : null);
+  refreshSubmit(question);
+}
+
+function refreshSubmit(question) {
+  const button = document.getElementById("submit-mazes");
+  if (!button) return;
+  const all = [...editors.values()];
+  const ready = all.length === question.k && all.every((e) => e.valid);
+  button.disabled = !ready;
+  button.title = ready ? "" : "every maze must be valid first";
+}
+
+async function submitMazes(question) {
+  const button = document.getElementById("submit-mazes");
+  button.disabled = true;
+  const mazes = [...Array(question.k).keys()].map((i) => editors.get(i).string);
+  const { ok, status, data } = await post("/api/answer", { question: question.id, answer: mazes });
+  if (ok) {
+    button.textContent = "Sent: training starts…";
+    return;
+  }
+  document.getElementById("answer-error").textContent = data.error;
+  (data.details || []).forEach((problem, index) => {
+    if (problem) document.getElementById(`maze-error-${index}`).textContent = problem;
+  });
+  if (status === 409) shownQuestion = null;
+  else refreshSubmit(question);
+}
+
+// -- the end ------------------------------------------------------------------------
+
+function finalView() {
+  const final = state.final;
+  const f = final.figures;
+  return el("div", { id: "final" },
+    el("h2", { text: "Session finished" }),
+    el("p", { text: "The final agent on the standard evaluation suite (18 mazes × 4 rotations), then in the 4 rotations of the target:" }),
+    el("table", { class: "figures final-figures" },
+      el("tr", {}, el("th", { text: "success rate" }), el("td", { id: "final-success", text: fixed(f.success_rate, 3) })),
+      el("tr", {}, el("th", { text: "normalised reward R̄" }), el("td", { text: fixed(f.normalized_reward, 3) })),
+      el("tr", {}, el("th", { text: "input recognition" }), el("td", { text: fixed(f.input_recognition, 3) })),
+      el("tr", {}, el("th", { text: "env steps" }), el("td", { text: count(f.env_steps) })),
+      el("tr", {}, el("th", { text: "training seconds" }), el("td", { text: fixed(f.seconds, 1) })),
+      el("tr", {}, el("th", { text: "final lineage" }), el("td", { text: (f.final_lineage || []).join(" → ") }))),
+    el("p", { class: "muted", text: final.headline }),
+    el("div", { class: "trajectories" }, final.files.filter((name) => name.startsWith("trajectories/"))
+      .map((name) => el("figure", {},
+        el("img", { src: `/files/${name}`, alt: name }),
+        el("figcaption", { class: "muted", text: name.replace("trajectories/", "").replace(".png", "") })))),
+    el("h3", { text: "Run folder" }),
+    el("p", {}, el("code", { text: state.run.out })),
+    el("ul", { class: "files" }, final.files.map((name) =>
+      el("li", {}, el("a", { href: `/files/${name}`, target: "_blank", rel: "noopener" }, name)))));
+}
+
+function failedView() {
+  return el("div", {},
+    el("h2", { text: "The run stopped" }),
+    el("p", { class: "error", id: "run-error", text: state.error }),
+    el("p", { class: "muted", text: "The decisions made so far are kept: fix the cause and go on with amaze-curate --resume." }));
+}
+
+// -- history ----------------------------------------------------------------------
+
+function drawHistory() {
+  const history = state.history;
+  const key = JSON.stringify([
+    state.phase === "finished", history.decisions.length, history.stages.map((s) => s.selected),
+  ]);
+  if (key === shownHistory) return;
+  shownHistory = key;
+  const body = document.querySelector("#decisions tbody");
+  body.replaceChildren(...history.decisions.map((d) => {
+    const answer = d.kind === "select"
+      ? `branch ${d.choice}${d.forced ? " (the only one)" : ""}`
+      : d.mazes.join("  ");
+    return el("tr", {},
+      el("td", { text: d.stage }),
+      el("td", { text: d.kind === "select" ? "choose agent" : "design mazes" }),
+      el("td", {}, d.kind === "select" ? answer : el("code", { text: answer })),
+      el("td", { text: d.time.replace("T", " ").replace("+00:00", "") }),
+      el("td", { text: d.forced || d.stage === 0 ? "–" : duration(d.seconds) }));
+  }));
+  document.getElementById("no-decisions").hidden = history.decisions.length > 0;
+  const figure = document.getElementById("curriculum-figure");
+  figure.hidden = history.stages.length === 0;
+  if (history.stages.length) {
+    document.getElementById("curriculum-picture").src = `/api/curriculum.png?v=${encodeURIComponent(key)}`;
+  }
+}
+
+poll();

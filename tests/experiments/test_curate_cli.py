@@ -1,0 +1,146 @@
+"""``amaze-curate`` as a user runs it: bad options, and a server killed mid-session that resumes."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from experiments.curate.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+SESSION = ["--algo", "cmaes", "--budget-steps", "24000", "--stages", "3", "--branches", "2"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["--algo", "sarsa", "--out", "x"], "sarsa"),
+        (["--stages", "-1", "--out", "x"], "stages"),
+        (["--branches", "0", "--out", "x"], "branches"),
+        (["--budget-steps", "-5", "--out", "x"], "budget_steps"),
+        (["--robot", "XY", "--out", "x"], "XY"),
+        (["--target", "M4_Q", "--out", "x"], "'Q'"),
+        (["--port", "70000", "--out", "x"], "70000"),
+        (["--host", "256.1.1.1", "--out", "x"], "256.1.1.1"),
+        ([], "--out"),
+        (["--resume", "nowhere"], "nowhere"),
+        (["--replay", "nowhere", "--out", "y"], "nowhere"),
+        (["--replay", "nowhere"], "--out"),
+    ],
+)
+def test_bad_options_give_one_error_line_and_status_2(
+    argv: list[str], named: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, "--no-browser"]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), captured.err
+    assert named in lines[0]
+    assert captured.out == ""
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_folder_that_holds_something_else_is_refused(tmp_path: Path, capsys) -> None:
+    (tmp_path / "notes.txt").write_text("mine")
+    assert main(["--out", str(tmp_path), "--no-browser"]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_only_a_persons_run_resumes_on_the_page(tmp_path: Path, capsys) -> None:
+    from evolution.run import EvolutionRun
+
+    out = tmp_path / "scripted"
+    config = {"algo": "cmaes", "regime": "edhucat", "curator": "random", "stages": 2}
+    EvolutionRun.fresh({**config, "branches": 1, "budget_steps": 4000}, out)
+    assert main(["--resume", str(out), "--no-browser"]) == 2
+    assert "'random'" in capsys.readouterr().err
+
+
+class Page:
+    """The page's side over HTTP: the token's cookie, the CSRF token, the state."""
+
+    def __init__(self, url: str) -> None:
+        self.client = httpx.Client(timeout=60)
+        page = self.client.get(url, follow_redirects=True)
+        assert page.status_code == 200
+        self.base = url.split("/?")[0]
+        self.csrf = re.search(r'name="csrf-token" content="([^"]+)"', page.text).group(1)
+
+    def question(self, wanted: str, timeout: float = 300) -> dict:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            state = self.client.get(f"{self.base}/api/state").json()
+            assert state["phase"] != "failed", state["error"]
+            if state["question"] and state["question"]["id"] == wanted:
+                return state["question"]
+            time.sleep(0.2)
+        raise AssertionError(f"no question {wanted} in {timeout} s")
+
+    def answer(self, question: str, answer: object) -> None:
+        response = self.client.post(
+            f"{self.base}/api/answer",
+            json={"question": question, "answer": answer},
+            headers={"X-CSRF-Token": self.csrf},
+        )
+        assert response.status_code == 200, response.text
+
+
+def start(*args: str) -> tuple[subprocess.Popen, str]:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "experiments.curate.cli", *args, "--port", "0", "--no-browser"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        cwd=ROOT,
+        env={**os.environ, "NUMBA_NUM_THREADS": "1"},
+    )
+    assert process.stdout is not None
+    return process, process.stdout.readline().strip()
+
+
+@pytest.mark.slow
+def test_a_killed_server_resumes_where_it_stopped(tmp_path: Path) -> None:
+    out = tmp_path / "me"
+    process, url = start("--out", str(out), *SESSION)
+    try:
+        assert re.fullmatch(r"http://127\.0\.0\.1:\d+/\?token=[\w-]{20,}", url)
+        page = Page(url)
+        page.question("generate-1")
+        page.answer("generate-1", ["M4_6x6_C1", "M5_6x6_C1"])
+        page.question("select-2")
+    finally:
+        process.kill()  # SIGKILL: no goodbye
+        process.wait()
+    lines = (out / "decisions.jsonl").read_text().splitlines()
+    assert [json.loads(line)["kind"] for line in lines] == ["generate", "select", "generate"]
+
+    process, url = start("--resume", str(out))
+    try:
+        page = Page(url)
+        asked = page.question("select-2")  # the stage is not trained again: it is asked at once
+        assert [r["maze"] for r in asked["candidates"][1]["results"]] == ["M4_6x6_C1", "M5_6x6_C1"]
+        page.answer("select-2", 1)
+        asked = page.question("generate-2")
+        page.answer("generate-2", asked["suggestions"])
+        page.question("select-3")
+        page.answer("select-3", 0)
+        deadline = time.monotonic() + 300
+        while page.client.get(f"{page.base}/api/state").json()["phase"] != "finished":
+            assert time.monotonic() < deadline
+            time.sleep(0.2)
+    finally:
+        process.terminate()
+        process.wait()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["final_lineage"] == [0, 1, 0]
+    assert summary["curator"] == "human"

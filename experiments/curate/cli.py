@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
+import os
 import secrets
 import socket
 import sys
@@ -34,7 +35,7 @@ from amaze.runs.config import read_json_object
 from amaze.runs.curriculum import CurriculumRun
 from amaze.runs.lifecycle import CONFIG_FILE, Run
 
-__all__ = ["ALGORITHMS", "entry_point", "main"]
+__all__ = ["ALGORITHMS", "entry_point", "exposure_warning", "main"]
 
 #: The algorithms a person can curate for, each with its trainer.
 ALGORITHMS = ("ppo", "a2c", "cmaes", "neat")
@@ -144,6 +145,19 @@ def _describe(config: Any) -> dict[str, Any]:
     }
 
 
+def exposure_warning(host: str) -> str | None:
+    """The warning printed when the page is served beyond this machine (``None`` on loopback)."""
+    try:
+        if ipaddress.ip_address(host).is_loopback:
+            return None
+    except ValueError:
+        pass
+    return (
+        f"warning: serving on {host}, not the loopback address: anyone who can reach it"
+        " and has the page's address can curate this run"
+    )
+
+
 def _listen(host: str, port: int) -> socket.socket:
     """A listening socket on ``host:port`` (port 0: a free one)."""
     try:
@@ -179,12 +193,9 @@ def _serve(args: argparse.Namespace, run_class: type[Run], config: Any, out: Pat
     host, port = sock.getsockname()[:2]
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{shown}:{port}/?token={token}"
-    if not ipaddress.ip_address(host).is_loopback:
-        print(
-            f"warning: serving on {host}, not the loopback address: anyone who can reach it"
-            " and has the address above can curate this run",
-            file=sys.stderr,
-        )
+    warning = exposure_warning(host)
+    if warning:
+        print(warning, file=sys.stderr)
     print(url, flush=True)
     if args.resume:
         session.start(lambda: browser_run.resume(out))
@@ -201,11 +212,22 @@ def _serve(args: argparse.Namespace, run_class: type[Run], config: Any, out: Pat
     server = uvicorn.Server(
         uvicorn.Config(app, log_level="warning", lifespan="off", access_log=False)
     )
+    interrupted = False
     try:
         server.run(sockets=[sock])
-    finally:
-        session.close()
-    return 1 if session.phase == "failed" else 0
+    except KeyboardInterrupt:
+        interrupted = True
+    session.close()
+    if session.phase != "finished":
+        print(f"amaze-curate: stopped; amaze-curate --resume {out} goes on", file=sys.stderr)
+    status = 130 if interrupted else 1 if session.phase == "failed" else 0
+    if not session.wait(timeout=2.0):
+        # Training is under way in the worker (torch, numba): end the process now, as a
+        # kill would. Every file of the run is written atomically, so the run resumes.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+    return status
 
 
 def _run(argv: Sequence[str]) -> int:

@@ -292,6 +292,8 @@ class CurationSession:
             self.error = message
             self.phase = "failed"
             self._bump()
+            if self.closed:  # the server stopped it: nothing went wrong
+                return
         print(f"error: {message}", file=sys.stderr, flush=True)
 
     def _bump(self) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -13,7 +14,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from experiments.curate.cli import main
+from experiments.curate.cli import exposure_warning, main
 
 ROOT = Path(__file__).resolve().parents[2]
 SESSION = ["--algo", "cmaes", "--budget-steps", "24000", "--stages", "3", "--branches", "2"]
@@ -47,6 +48,13 @@ def test_bad_options_give_one_error_line_and_status_2(
     assert named in lines[0]
     assert captured.out == ""
     assert not (tmp_path / "x").exists()
+
+
+def test_serving_beyond_the_loopback_address_is_warned_of() -> None:
+    for host in ("127.0.0.1", "127.0.0.2", "::1"):
+        assert exposure_warning(host) is None
+    for host in ("0.0.0.0", "192.0.2.7", "::", "example.org"):
+        assert host in exposure_warning(host)
 
 
 def test_a_folder_that_holds_something_else_is_refused(tmp_path: Path, capsys) -> None:
@@ -144,3 +152,32 @@ def test_a_killed_server_resumes_where_it_stopped(tmp_path: Path) -> None:
     summary = json.loads((out / "summary.json").read_text())
     assert summary["final_lineage"] == [0, 1, 0]
     assert summary["curator"] == "human"
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_training_stops_cleanly_and_the_run_resumes(tmp_path: Path) -> None:
+    out = tmp_path / "me"
+    process = subprocess.Popen(
+        [
+            *(sys.executable, "-m", "experiments.curate.cli", "--out", str(out)),
+            *("--budget-steps", "3000000", "--port", "0", "--no-browser"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+        env={**os.environ, "NUMBA_NUM_THREADS": "1"},
+    )
+    assert process.stdout is not None
+    page = Page(process.stdout.readline().strip())
+    deadline = time.monotonic() + 120
+    while not page.client.get(f"{page.base}/api/state").json()["training"]["branches"]:
+        assert time.monotonic() < deadline
+        time.sleep(0.2)
+    process.send_signal(signal.SIGINT)  # PPO is training its first branch
+    _, errors = process.communicate(timeout=60)
+    assert process.returncode == 130, errors
+    assert "terminate called" not in errors and "Traceback" not in errors
+    assert f"amaze-curate --resume {out} goes on" in errors
+    assert (out / "config.json").is_file()
+    assert main(["--resume", str(out), "--port", "70000", "--no-browser"]) == 2  # checked, intact

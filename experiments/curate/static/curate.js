@@ -276,6 +276,10 @@ function generateView(question) {
     el("div", { class: "references" },
       referenceCard("The agent's last maze", parent, null),
       referenceCard("The target", question.target, "Still to go from the last maze: ")),
+    el("div", { class: "previous" }, el("span", { class: "muted", text: "The last stage's mazes: " }),
+      question.previous.map((maze) => el("figure", { class: maze === parent.string ? "chosen" : "" },
+        el("img", { class: "thumb", src: previewUrl(maze), alt: maze, title: maze }),
+        el("figcaption", {}, el("code", { text: maze }))))),
     el("div", { class: "editors" }, forms),
     el("div", { class: "actions" }, submit, el("span", { id: "answer-error", class: "error", role: "alert" })));
 }

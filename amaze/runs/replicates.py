@@ -24,7 +24,15 @@ from typing import TextIO
 from amaze.errors import UsageError
 from amaze.validation import check_integer
 
-__all__ = ["Replicate", "plan_replicates", "replicate_command", "run_replicates", "strip_options"]
+__all__ = [
+    "Replicate",
+    "plan_replicates",
+    "replicate_command",
+    "run_replicates",
+    "strip_options",
+    "worker_environment",
+    "worker_threads",
+]
 
 
 @dataclass(frozen=True)
@@ -70,8 +78,14 @@ def plan_replicates(
     return plan
 
 
-def _environment(workers: int) -> dict[str, str]:
-    threads = str(max(1, (os.cpu_count() or 1) // workers))
+def worker_threads(workers: int) -> int:
+    """The threads each of ``workers`` parallel processes gets: an equal share of the cores."""
+    return max(1, (os.cpu_count() or 1) // workers)
+
+
+def worker_environment(workers: int) -> dict[str, str]:
+    """The environment of one of ``workers`` parallel processes (its thread pools sized)."""
+    threads = str(worker_threads(workers))
     env = dict(os.environ)
     env.update({"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": threads, "PYTHONUNBUFFERED": "1"})
     return env
@@ -86,7 +100,7 @@ def run_replicates(plan: Sequence[Replicate], workers: int | None = None) -> int
     if workers is None:
         workers = min(len(plan), os.cpu_count() or 1)
     check_integer("--workers", workers, minimum=1, error=UsageError)
-    env = _environment(workers)
+    env = worker_environment(workers)
     waiting = list(plan)
     running: list[tuple[Replicate, subprocess.Popen, TextIO]] = []
     status = 0

@@ -34,25 +34,12 @@ from amaze.runs.command import CommandParser, run_command
 from amaze.runs.config import read_json_object
 from amaze.runs.curriculum import CurriculumRun
 from amaze.runs.lifecycle import CONFIG_FILE, Run
+from experiments.trainers import ALGORITHMS
+from experiments.trainers import run_class as trainer
 
-__all__ = ["ALGORITHMS", "entry_point", "exposure_warning", "main"]
+__all__ = ["entry_point", "exposure_warning", "main"]
 
-#: The algorithms a person can curate for, each with its trainer.
-ALGORITHMS = ("ppo", "a2c", "cmaes", "neat")
 DEFAULT_PORT = 8765
-
-
-def trainer(algo: Any) -> type[Run]:
-    """The run class of the trainer of ``algo`` (imported only when asked for)."""
-    if algo in ("ppo", "a2c"):
-        from rl_baselines.train import SB3Run
-
-        return SB3Run
-    if algo in ("cmaes", "neat"):
-        from evolution.run import EvolutionRun
-
-        return EvolutionRun
-    raise UsageError(f"algorithm {algo!r} (choose from {', '.join(ALGORITHMS)})")
 
 
 def parser() -> CommandParser:

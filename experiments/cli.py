@@ -1,0 +1,86 @@
+"""The ``amaze-experiment`` command: run studies, see where they stand, report them.
+
+::
+
+    amaze-experiment run smoke --out studies/smoke [--workers 2]
+    amaze-experiment run my-study.toml --out studies/mine
+    amaze-experiment status studies/smoke
+    amaze-experiment report studies/smoke      # report.md, runs.csv, tests.csv, figures/
+    amaze-experiment list                      # the shipped studies
+
+``run`` may be stopped (Ctrl-C) and started again at any time: finished runs
+are kept, killed ones resume (:mod:`experiments.runner`). Bad input prints one
+line ``error: ...`` and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from typing import NoReturn
+
+from amaze.runs.command import CommandParser, run_command
+from experiments.report import write_report
+from experiments.runner import format_status, run_study, study_status
+from experiments.study import load_study, study_names
+
+__all__ = ["entry_point", "main"]
+
+
+def parser() -> CommandParser:
+    p = CommandParser(
+        prog="amaze-experiment",
+        description="Run a study (a grid of trainers x algorithms x seeds), then report it.",
+    )
+    commands = p.add_subparsers(dest="command", required=True, parser_class=CommandParser)
+    run = commands.add_parser("run", help="run a study's unfinished runs")
+    run.add_argument("study", help=f"a shipped study ({', '.join(study_names())}) or a TOML file")
+    run.add_argument("--out", required=True, metavar="DIR", help="the study's folder")
+    run.add_argument("--workers", type=int, metavar="N", help="runs at once (default: the cores)")
+    run.add_argument(
+        "--progress",
+        action="store_true",
+        default=None,
+        help="show the progress bar even when standard error is not a terminal",
+    )
+    status = commands.add_parser("status", help="what is done, running, failed")
+    status.add_argument("out", metavar="DIR")
+    report = commands.add_parser("report", help="write report.md, runs.csv and figures")
+    report.add_argument("out", metavar="DIR")
+    commands.add_parser("list", help="the shipped studies")
+    return p
+
+
+def _run(argv: Sequence[str]) -> int:
+    args = parser().parse_args(list(argv))
+    if args.command == "list":
+        for name in study_names():
+            study = load_study(name)
+            print(f"{name}: {len(study.runs)} runs. {study.description.strip().splitlines()[0]}")
+        return 0
+    if args.command == "status":
+        print(format_status(*study_status(args.out)))
+        return 0
+    if args.command == "report":
+        path = write_report(args.out)
+        print(f"report: {path}")
+        return 0
+    study = load_study(args.study)
+    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    status = run_study(study, args.out, workers=args.workers, progress_bar=progress)
+    print(format_status(*study_status(args.out)))
+    return status
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; return the exit status (2 for bad input, 1 when a run failed)."""
+    return run_command(lambda: _run(sys.argv[1:] if argv is None else argv))
+
+
+def entry_point() -> NoReturn:
+    """Console-script entry point."""
+    raise SystemExit(main())
+
+
+if __name__ == "__main__":
+    entry_point()

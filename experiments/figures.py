@@ -1,0 +1,246 @@
+"""The figures of a study's report (matplotlib, written under ``DIR/figures/``).
+
+* ``distributions.png``: R̄ and success of every run per treatment (boxes and
+  the runs as points), the paper's figures of the same;
+* ``inputs.png``: input recognition per input class (empty corridor, lure,
+  clue, trap) per treatment;
+* ``curves.png``: learning curves, the median over seeds of what each run
+  logged in ``progress.csv`` against env steps and against wall-clock
+  training seconds (see :func:`learning_curve` for which column each trainer
+  logs);
+* ``best-trajectories.png``: the best run's agent (by suite success, then
+  R̄) in the 4 rotations of its target or evaluation maze.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from amaze.maze.render import load_font, save_picture
+from experiments.runner import StudyFolder
+from experiments.study import Study
+
+__all__ = ["learning_curve", "save_figures"]
+
+#: Points of a learning curve's common grid.
+GRID = 60
+ALGORITHM_COLORS = {"a2c": "#d95f02", "ppo": "#1b9e77", "cmaes": "#7570b3", "neat": "#e7298a"}
+
+
+def learning_curve(folder: Path) -> dict[str, np.ndarray] | None:
+    """``steps``, ``seconds`` and, when logged, ``success`` and ``rbar`` of a run's progress.
+
+    What each trainer logs: the direct RL run, its evaluation on the paper's
+    evaluation maze (``eval_success``, ``eval_rbar``); a curriculum, each
+    branch on its own maze (``success``, ``rbar``; its seconds are per
+    branch, summed here); coevolution, the champion on validation mazes
+    (``champion_success``); direct evolution, the champion's fitness (as R̄
+    when the fitness measure is R̄; no success). ``None`` without a log.
+    """
+    path = folder / "progress.csv"
+    try:
+        rows = list(csv.DictReader(io.StringIO(path.read_text(encoding="utf-8"))))
+    except OSError:
+        return None
+    if not rows:
+        return None
+
+    def column(name: str) -> np.ndarray:
+        return np.array(
+            [float(row[name]) if row[name] not in ("", None) else np.nan for row in rows]
+        )
+
+    fields = rows[0].keys()
+    curve = {"steps": column("steps")}
+    if "branches" in fields:
+        curve["seconds"] = np.cumsum(column("seconds"))
+        curve["success"], curve["rbar"] = column("success"), column("rbar")
+    else:
+        curve["seconds"] = column("seconds")
+        if "eval_success" in fields:
+            curve["success"], curve["rbar"] = column("eval_success"), column("eval_rbar")
+        elif "champion_success" in fields:
+            curve["success"] = column("champion_success")
+        elif "champion" in fields:
+            try:
+                config = json.loads((folder / "config.json").read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                config = {}
+            if config.get("fitness") == "paper_reward":
+                curve["rbar"] = column("champion")
+    return curve
+
+
+def _median_curve(curves: Sequence[dict[str, np.ndarray]], x_name: str, y_name: str):
+    usable = [c for c in curves if y_name in c and len(c[x_name])]
+    if not usable:
+        return None
+    end = max(float(np.nanmax(c[x_name])) for c in usable)
+    if not math.isfinite(end) or end <= 0:
+        return None
+    grid = np.linspace(0, end, GRID)
+    stacked = []
+    for curve in usable:
+        x, y = curve[x_name], curve[y_name]
+        index = np.searchsorted(x, grid, side="right") - 1
+        values = np.where(index >= 0, y[np.clip(index, 0, None)], np.nan)
+        values = np.where(grid <= x[-1], values, y[-1])  # a finished run holds its last value
+        stacked.append(values)
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return grid, np.nanmedian(np.vstack(stacked), axis=0)
+
+
+def _label(treatment: str, budgets: int) -> str:
+    trainer, algorithm, budget = treatment.split("/")
+    return f"{trainer}\n{algorithm.upper()}" + (f"\n{budget}" if budgets > 1 else "")
+
+
+def save_figures(
+    folder: StudyFolder, study: Study, rows: Sequence[dict[str, Any]]
+) -> list[tuple[str, Path]]:
+    """Write the figures (see the module docstring); return their titles and paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = folder.out / "figures"
+    out.mkdir(parents=True, exist_ok=True)
+    treatments = [t for t in study.treatments if any(r["treatment"] == t for r in rows)]
+    budgets = len({r.budget for r in study.runs})
+    written: list[tuple[str, Path]] = []
+    if not treatments:
+        return written
+    labels = [_label(t, budgets) for t in treatments]
+    colors = [ALGORITHM_COLORS.get(t.split("/")[1], "#666666") for t in treatments]
+    width = max(6.0, 0.9 * len(treatments) + 2)
+    rng = np.random.default_rng(0)  # jitter of the points only
+
+    def boxes(ax, metric: str, title: str) -> None:
+        data = [
+            [r[metric] for r in rows if r["treatment"] == t and not math.isnan(r[metric])]
+            for t in treatments
+        ]
+        positions = np.arange(len(treatments))
+        ax.boxplot(data, positions=positions, widths=0.55, showfliers=False)
+        for x, values, color in zip(positions, data, colors, strict=True):
+            ax.scatter(
+                x + rng.uniform(-0.15, 0.15, len(values)), values, s=14, color=color, zorder=3
+            )
+        ax.set_xticks(positions, labels, fontsize=7)
+        ax.set_title(title, fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+
+    figure, axes = plt.subplots(1, 2, figsize=(2 * width, 4.2))
+    boxes(axes[0], "normalized_reward", "Normalized reward R̄ (evaluation suite)")
+    boxes(axes[1], "success_rate", "Success rate (evaluation suite)")
+    written.append(("R̄ and success per treatment", _save(figure, out / "distributions.png")))
+
+    figure, axes = plt.subplots(1, 4, figsize=(4 * width * 0.6, 4.2), sharey=True)
+    for ax, kind in zip(axes, ("empty", "lure", "clue", "trap"), strict=True):
+        boxes(ax, f"input_{kind}", f"Input recognition: {kind}")
+        ax.tick_params(axis="x", labelsize=6)
+    written.append(("Input recognition per input class", _save(figure, out / "inputs.png")))
+
+    curves: dict[str, list[dict[str, np.ndarray]]] = {t: [] for t in treatments}
+    for run in study.runs:
+        if run.treatment in curves and (folder.run_folder(run) / "summary.json").is_file():
+            curve = learning_curve(folder.run_folder(run))
+            if curve is not None:
+                curves[run.treatment].append(curve)
+    figure, axes = plt.subplots(2, 2, figsize=(13, 8))
+    styles = ["-", "--", ":", "-."]
+    for treatment, color in zip(treatments, colors, strict=True):
+        trainer_index = list(dict.fromkeys(t.split("/")[0] for t in treatments)).index(
+            treatment.split("/")[0]
+        )
+        for row, y_name in enumerate(("success", "rbar")):
+            for col, x_name in enumerate(("steps", "seconds")):
+                median = _median_curve(curves[treatment], x_name, y_name)
+                if median is not None:
+                    axes[row][col].plot(
+                        *median,
+                        styles[trainer_index % len(styles)],
+                        color=color,
+                        label=treatment,
+                        lw=1.4,
+                    )
+    for row, y_label in enumerate(("success (as logged)", "R̄ (as logged)")):
+        for col, x_label in enumerate(("env steps", "training seconds")):
+            ax = axes[row][col]
+            ax.set_xlabel(x_label)
+            ax.set_ylabel(y_label)
+            ax.grid(alpha=0.3)
+    handles, names = axes[0][0].get_legend_handles_labels()
+    more, more_names = axes[1][0].get_legend_handles_labels()
+    legend = dict(zip(names + more_names, handles + more, strict=True))
+    figure.legend(legend.values(), legend.keys(), loc="lower center", ncol=4, fontsize=7)
+    figure.suptitle("Learning curves: median over seeds of what each run logged", fontsize=11)
+    figure.tight_layout(rect=(0, 0.08, 1, 0.96))
+    written.append(("Learning curves", _save(figure, out / "curves.png")))
+
+    best = _best(rows)
+    if best is not None:
+        strip = _trajectory_strip(folder.out / best["folder"], best)
+        if strip is not None:
+            path = save_picture(strip, out / "best-trajectories.png")
+            written.append(("The best agent's trajectories", path))
+    plt.close("all")
+    return written
+
+
+def _save(figure: Any, path: Path) -> Path:
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=110)
+    from amaze.runs.folder import write_bytes
+
+    write_bytes(path, buffer.getvalue())
+    return path
+
+
+def _best(rows: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
+    scored = [r for r in rows if not math.isnan(r["success_rate"])]
+    if not scored:
+        return None
+    return max(scored, key=lambda r: (r["success_rate"], r["normalized_reward"]))
+
+
+def _trajectory_strip(run_folder: Path, row: dict[str, Any]) -> Image.Image | None:
+    pictures = sorted((run_folder / "trajectories").glob("*.png"))
+    if not pictures:
+        return None
+    images = [Image.open(p).convert("RGB") for p in pictures]
+    height = 260
+    scaled = [im.resize((max(1, im.width * height // im.height), height)) for im in images]
+    caption = 34
+    strip = Image.new(
+        "RGB",
+        (sum(im.width for im in scaled) + 10 * (len(scaled) + 1), height + caption + 10),
+        "white",
+    )
+    draw = ImageDraw.Draw(strip)
+    draw.text(
+        (10, 8),
+        f"{row['treatment']}, seed {row['seed']}: suite success {row['success_rate']:.3f},"
+        f" R̄ {row['normalized_reward']:.3f}",
+        fill=(30, 30, 30),
+        font=load_font(14),
+    )
+    x = 10
+    for image in scaled:
+        strip.paste(image, (x, caption))
+        x += image.width + 10
+    return strip

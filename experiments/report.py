@@ -1,0 +1,402 @@
+"""A study's report: every number recomputed from its runs' ``summary.json`` files.
+
+``amaze-experiment report DIR`` (:func:`write_report`) writes, in ``DIR``:
+
+* ``runs.csv``: one row per finished run (study, treatment, trainer,
+  algorithm, budget, robot, seed, env steps, seconds, wall-clock and
+  core-seconds, suite success, R̄, input recognition and its rate per input
+  class, the run's folder);
+* ``tests.csv``: every pairwise comparison (:mod:`experiments.stats`);
+* ``figures/``: distributions of R̄ and success per treatment, input
+  recognition per class, learning curves (against env steps and wall-clock
+  seconds) and the best agent's trajectories;
+* ``report.md``: the paper's Table 3 for the study (maximum and median of R̄,
+  success and input recognition per trainer x algorithm, best in bold,
+  second in italics) with the paper's own numbers beside it
+  (:mod:`experiments.paper`), the significant pairwise differences, the
+  figures and the compute each treatment took.
+
+Pairs are compared when they differ in one factor (trainer or algorithm)
+under the same budget: the comparisons a reader makes, and a family small
+enough for the correction to leave some power.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import asdict
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from amaze.runs.folder import write_bytes
+from amaze.runs.lifecycle import SUMMARY_FILE
+from experiments.paper import PAPER_CITATION, PAPER_TABLE3, paper_trainer
+from experiments.runner import StudyFolder
+from experiments.stats import Comparison, compare_pairs
+from experiments.study import PlannedRun, Study
+
+__all__ = ["METRICS", "collect_rows", "table3", "write_report"]
+
+#: The metrics of Table 3, in the paper's order, with their labels.
+METRICS = {
+    "normalized_reward": "Normalized reward R̄",
+    "success_rate": "Success rate",
+    "input_recognition": "Input recognition",
+}
+#: The input classes of the input-recognition test.
+INPUT_CLASSES = ("empty", "lure", "clue", "trap")
+RUN_COLUMNS = (
+    "study",
+    "treatment",
+    "trainer",
+    "algorithm",
+    "budget",
+    "robot",
+    "seed",
+    "env_steps",
+    "seconds",
+    "wall_seconds",
+    "threads",
+    "core_seconds",
+    "success_rate",
+    "normalized_reward",
+    "input_recognition",
+    *(f"input_{kind}" for kind in INPUT_CLASSES),
+    "folder",
+)
+
+
+def _number(value: Any) -> float:
+    return (
+        float(value) if isinstance(value, int | float) and not isinstance(value, bool) else math.nan
+    )
+
+
+def collect_rows(folder: StudyFolder, study: Study) -> list[dict[str, Any]]:
+    """One row per finished run of ``study`` in ``folder`` (see :data:`RUN_COLUMNS`)."""
+    state = folder.state()
+    rows = []
+    for run in study.runs:
+        path = folder.run_folder(run) / SUMMARY_FILE
+        if not path.is_file():
+            continue
+        summary = json.loads(path.read_text(encoding="utf-8"))
+        rates = summary.get("input_rates") or {}
+        wall = _number(state["wall_seconds"].get(run.id))
+        threads = state["threads"].get(run.id)
+        rows.append(
+            {
+                "study": study.name,
+                "treatment": run.treatment,
+                "trainer": run.trainer,
+                "algorithm": run.algorithm,
+                "budget": run.budget,
+                "robot": run.config.get("robot"),
+                "seed": run.seed,
+                "env_steps": int(summary["env_steps"]),
+                "seconds": _number(summary.get("seconds")),
+                "wall_seconds": wall,
+                "threads": threads if isinstance(threads, int) else "",
+                "core_seconds": wall * threads if isinstance(threads, int) else math.nan,
+                "success_rate": _number(summary.get("success_rate")),
+                "normalized_reward": _number(summary.get("normalized_reward")),
+                "input_recognition": _number(summary.get("input_recognition")),
+                **{f"input_{kind}": _number(rates.get(kind)) for kind in INPUT_CLASSES},
+                "folder": str(folder.run_folder(run).relative_to(folder.out)),
+            }
+        )
+    return rows
+
+
+def _csv(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> bytes:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow(
+            {k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
+        )
+    return buffer.getvalue().encode("utf-8")
+
+
+def _cells(study: Study, budget: str) -> list[tuple[str, str]]:
+    """The (trainer, algorithm) cells of one budget, in the study's order."""
+    return list(dict.fromkeys((r.trainer, r.algorithm) for r in study.runs if r.budget == budget))
+
+
+def _values(
+    rows: Sequence[dict[str, Any]], trainer: str, algorithm: str, budget: str, metric: str
+) -> list[float]:
+    return [
+        row[metric]
+        for row in rows
+        if (row["trainer"], row["algorithm"], row["budget"]) == (trainer, algorithm, budget)
+        and not math.isnan(row[metric])
+    ]
+
+
+def _statistic(values: Sequence[float], statistic: str) -> float:
+    if not values:
+        return math.nan
+    return float(np.max(values)) if statistic == "max" else float(np.median(values))
+
+
+def _ranked(row: Sequence[float]) -> list[str]:
+    """``bold``/``italic``/``""`` per value: the best and second-best distinct values of a row."""
+    distinct = sorted({v for v in row if not math.isnan(v)}, reverse=True)
+    marks = []
+    for value in row:
+        if distinct and value == distinct[0]:
+            marks.append("bold")
+        elif len(distinct) > 1 and value == distinct[1]:
+            marks.append("italic")
+        else:
+            marks.append("")
+    return marks
+
+
+def _fmt(value: float, mark: str = "") -> str:
+    if math.isnan(value):
+        return "–"
+    text = f"{value:.3g}" if abs(value) >= 0.001 else f"{value:.3f}"
+    return f"**{text}**" if mark == "bold" else f"*{text}*" if mark == "italic" else text
+
+
+def table3(rows: Sequence[dict[str, Any]], study: Study, budget: str) -> tuple[str, dict]:
+    """The paper's Table 3 for one budget, as Markdown, and its numbers.
+
+    Rows: maximum and median of each metric over the seeds; columns:
+    trainer x algorithm. The best value of a row is bold, the second italic
+    (higher is better for every metric).
+    """
+    cells = _cells(study, budget)
+    header = "| | | " + " | ".join(f"{t}<br>{a.upper()}" for t, a in cells) + " |"
+    lines = [header, "|---|---|" + "---|" * len(cells)]
+    numbers: dict[str, dict[str, list[float]]] = {}
+    for statistic, title in (("max", "Maximum"), ("median", "Median")):
+        numbers[statistic] = {}
+        for metric, label in METRICS.items():
+            row = [_statistic(_values(rows, t, a, budget, metric), statistic) for t, a in cells]
+            numbers[statistic][metric] = row
+            marks = _ranked(row)
+            values = " | ".join(_fmt(v, m) for v, m in zip(row, marks, strict=True))
+            lines.append(f"| {title} | {label} | {values} |")
+    counts = [len(_values(rows, t, a, budget, "success_rate")) for t, a in cells]
+    lines.append("| | runs | " + " | ".join(str(c) for c in counts) + " |")
+    return "\n".join(lines), numbers
+
+
+def paper_comparison(rows: Sequence[dict[str, Any]], study: Study, budget: str) -> str | None:
+    """This study's Table 3 cells beside the paper's (where the paper has the cell)."""
+    cells = [
+        (t, a)
+        for t, a in _cells(study, budget)
+        if (paper_trainer(t), a) in PAPER_TABLE3["max"]["success_rate"]
+    ]
+    if not cells:
+        return None
+    header = "| | | " + " | ".join(f"{t}<br>{a.upper()}" for t, a in cells) + " |"
+    lines = [header, "|---|---|" + "---|" * len(cells)]
+    for statistic, title in (("max", "Maximum"), ("median", "Median")):
+        for metric, label in METRICS.items():
+            values = []
+            for trainer, algorithm in cells:
+                ours = _statistic(_values(rows, trainer, algorithm, budget, metric), statistic)
+                theirs = PAPER_TABLE3[statistic][metric][(paper_trainer(trainer), algorithm)]
+                values.append(f"{_fmt(ours)} / {theirs:g}")
+            lines.append(f"| {title} | {label} | " + " | ".join(values) + " |")
+    return "\n".join(lines)
+
+
+def pairs_of(study: Study, budget: str) -> list[tuple[str, str]]:
+    """The treatments of one budget that differ in exactly one factor (trainer or algorithm)."""
+    cells = _cells(study, budget)
+    pairs = []
+    for i, (t1, a1) in enumerate(cells):
+        for t2, a2 in cells[i + 1 :]:
+            if (t1 == t2) != (a1 == a2):
+                pairs.append((f"{t1}/{a1}/{budget}", f"{t2}/{a2}/{budget}"))
+    return pairs
+
+
+def comparisons(rows: Sequence[dict[str, Any]], study: Study) -> list[Comparison]:
+    """The pairwise tests of every metric; each metric is one family for the correction."""
+    budgets = list(dict.fromkeys(r.budget for r in study.runs))
+    found: list[Comparison] = []
+    for metric in METRICS:
+        groups = {
+            treatment: [row[metric] for row in rows if row["treatment"] == treatment]
+            for treatment in study.treatments
+        }
+        pairs = [pair for budget in budgets for pair in pairs_of(study, budget)]
+        found += compare_pairs(metric, groups, pairs)
+    return found
+
+
+TEST_COLUMNS = (
+    "metric",
+    "first",
+    "second",
+    "n_first",
+    "n_second",
+    "mean_first",
+    "mean_second",
+    "t_p",
+    "t_p_corrected",
+    "t_stars",
+    "cohens_d",
+    "u_p",
+    "u_p_corrected",
+    "u_stars",
+    "rank_biserial",
+)
+
+
+def _test_rows(found: Sequence[Comparison]) -> list[dict[str, Any]]:
+    rows = []
+    for comparison in found:
+        row = asdict(comparison)
+        row["t_stars"], row["u_stars"] = comparison.t_stars, comparison.u_stars
+        rows.append({k: (math.nan if v is None else v) for k, v in row.items()})
+    return rows
+
+
+def _significant(found: Sequence[Comparison]) -> str:
+    chosen = [c for c in found if c.t_stars not in ("ns", "n/a") or c.u_stars not in ("ns", "n/a")]
+    if not chosen:
+        return "No pair differs significantly (corrected p < 0.05) in either test."
+    lines = [
+        "| metric | first | second | means | t-test (BH) | Cohen's d | Mann-Whitney (BH)"
+        " | rank-biserial |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for c in chosen:
+        lines.append(
+            f"| {METRICS[c.metric]} | {c.first} | {c.second} |"
+            f" {c.mean_first:.3g} vs {c.mean_second:.3g} |"
+            f" {_p(c.t_p_corrected)} {c.t_stars} | {_signed(c.cohens_d)} |"
+            f" {_p(c.u_p_corrected)} {c.u_stars} | {_signed(c.rank_biserial)} |"
+        )
+    return "\n".join(lines)
+
+
+def _signed(value: float) -> str:
+    return "n/a" if math.isnan(value) else f"{value:+.2f}"
+
+
+def _p(p: float | None) -> str:
+    return "n/a" if p is None else f"{p:.2g}"
+
+
+def _compute(rows: Sequence[dict[str, Any]], study: Study) -> str:
+    lines = [
+        "| treatment | runs | env steps (median) | training s (median) | wall-clock s (sum)"
+        " | core-s (sum) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for treatment in study.treatments:
+        mine = [r for r in rows if r["treatment"] == treatment]
+        if not mine:
+            lines.append(f"| {treatment} | 0 | – | – | – | – |")
+            continue
+        steps = float(np.median([r["env_steps"] for r in mine]))
+        seconds = float(np.nanmedian([r["seconds"] for r in mine]))
+        wall = float(np.nansum([r["wall_seconds"] for r in mine]))
+        core = float(np.nansum([r["core_seconds"] for r in mine]))
+        lines.append(
+            f"| {treatment} | {len(mine)} | {steps:,.0f} | {seconds:.1f} | {wall:.0f}"
+            f" | {core:.0f} |"
+        )
+    return "\n".join(lines)
+
+
+def write_report(out: str | Path) -> Path:
+    """Write ``report.md``, ``runs.csv``, ``tests.csv`` and ``figures/`` in the study's folder."""
+    from experiments.figures import save_figures
+
+    folder = StudyFolder(out)
+    study = folder.study()
+    rows = collect_rows(folder, study)
+    write_bytes(folder.out / "runs.csv", _csv(rows, RUN_COLUMNS))
+    found = comparisons(rows, study)
+    write_bytes(folder.out / "tests.csv", _csv(_test_rows(found), TEST_COLUMNS))
+    figures = save_figures(folder, study, rows)
+    budgets = list(dict.fromkeys(r.budget for r in study.runs))
+    parts = [
+        f"# Study `{study.name}`: report",
+        "",
+        study.description.strip(),
+        "",
+        f"{len(rows)} of {len(study.runs)} runs finished; written"
+        f" {datetime.now(UTC).isoformat(timespec='seconds')} from their `summary.json` files"
+        " (`runs.csv`). Every agent is scored on the standard evaluation suite (18 mazes x 4"
+        " rotations) and by the input-recognition test.",
+        "",
+    ]
+    for budget in budgets:
+        spec = next(r for r in study.runs if r.budget == budget)
+        parts += [
+            f"## Table 3, budget `{budget}` ({_budget_words(spec)})",
+            "",
+            "Maximum and median over the seeds of each treatment; best of a row in **bold**,"
+            " second in *italics* (higher is better everywhere).",
+            "",
+            table3(rows, study, budget)[0],
+            "",
+        ]
+        paper = paper_comparison(rows, study, budget)
+        if paper:
+            parts += [
+                f"### Beside the paper (this study / {PAPER_CITATION})",
+                "",
+                "The paper's EDHuCAT curator was a person; here `edhucat-*` are scripted"
+                " strategies. The paper trained for 3 M env steps.",
+                "",
+                paper,
+                "",
+            ]
+    parts += [
+        "## Pairwise differences",
+        "",
+        "Treatments under the same budget that differ in one factor, compared per metric with"
+        " an independent t-test (as the paper) and a Mann-Whitney U test, each corrected with"
+        " Benjamini-Hochberg over the metric's pairs; effect sizes Cohen's d and the"
+        " rank-biserial correlation (first vs second). Stars: * p < 0.05, ** < 1e-2,"
+        " *** < 1e-3, **** < 1e-4. Every pair is in `tests.csv`; the significant ones:",
+        "",
+        _significant(found),
+        "",
+        "## Figures",
+        "",
+    ]
+    for title, path in figures:
+        parts += [f"### {title}", "", f"![{title}]({path.relative_to(folder.out).as_posix()})", ""]
+    parts += [
+        "## Compute",
+        "",
+        "Env steps and training seconds from `summary.json`; wall-clock seconds of each run's"
+        " process (over every resumed part) and core-seconds (wall-clock x the threads it was"
+        " given) from the runner.",
+        "",
+        _compute(rows, study),
+        "",
+    ]
+    path = folder.out / "report.md"
+    write_bytes(path, "\n".join(parts).encode("utf-8"))
+    return path
+
+
+def _budget_words(run: PlannedRun) -> str:
+    words = []
+    if run.budget_steps:
+        words.append(f"{run.budget_steps:,} env steps")
+    if run.budget_seconds:
+        words.append(f"{run.budget_seconds:g} s")
+    return " or ".join(words) if words else "no budget"

@@ -1,0 +1,300 @@
+"""Studies as files: a grid of trainers x algorithms x budgets x seeds, in TOML.
+
+A study names the runs of a comparison. ``experiments/studies/`` ships
+``smoke``, ``paper``, ``evo-vs-rl`` and ``curators``; any TOML file of the
+same form is a study::
+
+    name = "mine"
+    description = "PPO against CMA-ES on the paper's three trainers"
+    seeds = 5                         # seeds 0..4; or a list: seeds = [3, 7]
+    robot = "DD"
+    trainers = ["direct", "interpolation", "edhucat-careful"]
+    algorithms = ["ppo", "cmaes"]
+
+    [budgets]                         # each budget is a treatment of its own
+    steps = { steps = 1_000_000 }     # env steps
+    clock = { seconds = 600 }         # wall-clock seconds (steps = ... too: whichever first)
+
+    [options.all]                     # config fields of every run, then more specific ones:
+    [options.ppo]                     #   an algorithm's,
+    hyperparameters = { n_steps = 512 }
+    [options.edhucat-careful]         #   a trainer's,
+    stages = 5
+    [options."coevolution/ppo"]       #   a trainer/algorithm pair's (the last word)
+    n_envs = 16
+
+    [[exclude]]                       # cells of the grid left out
+    trainer = "coevolution"
+    algorithm = "neat"
+
+A *treatment* is a (trainer, algorithm, budget) cell; each runs once per
+seed. Every run's config is built and checked by its trainer's config class
+when the study is read, so a bad study fails before anything runs, with a
+message naming the file and the run.
+"""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+from amaze.errors import AmazeError, UsageError
+from experiments.trainers import (
+    ALGORITHMS,
+    EVOLUTION_ALGORITHMS,
+    TRAINERS,
+    run_class,
+    trainer_fields,
+)
+
+__all__ = ["STUDIES", "PlannedRun", "Study", "StudyError", "load_study", "study_names"]
+
+#: The folder of the shipped studies.
+STUDIES = files("experiments") / "studies"
+#: The keys a study file may have.
+STUDY_KEYS = frozenset(
+    {"name", "description", "seeds", "robot", "trainers", "algorithms", "budgets", "options"}
+    | {"exclude"}
+)
+#: Most runs in one study.
+MAX_RUNS = 10_000
+
+
+class StudyError(AmazeError):
+    """A study file that cannot be run: the message names the file and the value."""
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    """One run of a study: its treatment, its seed and its whole checked config."""
+
+    trainer: str
+    algorithm: str
+    budget: str
+    seed: int
+    config: dict[str, Any] = field(compare=False)
+
+    @property
+    def treatment(self) -> str:
+        """``trainer/algorithm/budget``: the cell of the grid."""
+        return f"{self.trainer}/{self.algorithm}/{self.budget}"
+
+    @property
+    def id(self) -> str:
+        """A name unique in the study, also the run's folder under ``runs/``."""
+        return f"{self.trainer}_{self.algorithm}_{self.budget}_seed-{self.seed}"
+
+    @property
+    def budget_steps(self) -> int | None:
+        return self.config.get("budget_steps")
+
+    @property
+    def budget_seconds(self) -> float | None:
+        return self.config.get("budget_seconds")
+
+
+@dataclass(frozen=True)
+class Study:
+    """A study read from its TOML file (see the module docstring)."""
+
+    name: str
+    description: str
+    source: str
+    text: str
+    runs: tuple[PlannedRun, ...]
+
+    @property
+    def treatments(self) -> list[str]:
+        """The treatments, in the file's order."""
+        return list(dict.fromkeys(run.treatment for run in self.runs))
+
+
+def study_names() -> list[str]:
+    """The shipped studies' names."""
+    return sorted(
+        p.name.removesuffix(".toml") for p in STUDIES.iterdir() if p.name.endswith(".toml")
+    )
+
+
+def load_study(name_or_path: str | Path) -> Study:
+    """The study called ``name_or_path`` (a shipped one) or in that TOML file, checked."""
+    text_name = str(name_or_path)
+    shipped = STUDIES / f"{text_name}.toml"
+    if not text_name.endswith(".toml") and shipped.is_file():
+        source, text = f"study {text_name!r}", shipped.read_text(encoding="utf-8")
+    else:
+        path = Path(text_name)
+        if not path.is_file():
+            raise UsageError(
+                f"no study {text_name!r}: neither a file nor one of {', '.join(study_names())}"
+            )
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as problem:
+            raise StudyError(f"study file {text_name!r} cannot be read: {problem}") from None
+        source = f"study file {text_name!r}"
+    return parse_study(text, source)
+
+
+def parse_study(text: str, source: str = "study") -> Study:
+    """The study in the TOML ``text``; ``source`` names it in error messages."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as problem:
+        raise StudyError(f"{source} is not valid TOML: {problem}") from None
+
+    def bad(message: str) -> StudyError:
+        return StudyError(f"{source}: {message}")
+
+    unknown = set(data) - STUDY_KEYS
+    if unknown:
+        raise bad(
+            f"unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(STUDY_KEYS))})"
+        )
+    name = data.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise bad(f"name {name!r} is not a non-empty string")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        raise bad(f"description {description!r} is not a string")
+    seeds = _seeds(data.get("seeds", 1), bad)
+    robot = data.get("robot", "DD")
+    if not isinstance(robot, str):
+        raise bad(f"robot {robot!r} is not a string")
+    trainers = _names(data.get("trainers"), "trainers", TRAINERS, bad)
+    algorithms = _names(data.get("algorithms"), "algorithms", ALGORITHMS, bad)
+    budgets = _budgets(data.get("budgets"), bad)
+    options = _options(data.get("options", {}), trainers, algorithms, bad)
+    excluded = _excluded(data.get("exclude", []), bad)
+    runs = []
+    for budget_name, budget in budgets.items():
+        for trainer in trainers:
+            for algorithm in algorithms:
+                if (trainer, algorithm) in excluded:
+                    continue
+                for seed in seeds:
+                    config = _config(trainer, algorithm, budget, robot, seed, options)
+                    run = PlannedRun(trainer, algorithm, budget_name, seed, config)
+                    runs.append(_checked(run, bad))
+    if not runs:
+        raise bad("the grid holds no run (every cell is excluded)")
+    if len(runs) > MAX_RUNS:
+        raise bad(f"{len(runs)} runs (at most {MAX_RUNS})")
+    return Study(name.strip(), description, source, text, tuple(runs))
+
+
+def _seeds(value: Any, bad: Any) -> list[int]:
+    if isinstance(value, int) and not isinstance(value, bool):
+        if not 1 <= value <= 1000:
+            raise bad(f"seeds {value} is not in 1..1000 (replicates)")
+        return list(range(value))
+    if (
+        isinstance(value, list)
+        and value
+        and all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value)
+    ):
+        if len(set(value)) != len(value):
+            raise bad(f"seeds {value} repeats a seed")
+        return list(value)
+    raise bad(f"seeds {value!r} is neither a number of replicates nor a list of seeds")
+
+
+def _names(value: Any, what: str, known: Any, bad: Any) -> list[str]:
+    if not isinstance(value, list) or not value:
+        raise bad(f"{what} {value!r} is not a non-empty list")
+    for name in value:
+        if name not in known:
+            raise bad(f"{what}: {name!r} is not one of {', '.join(known)}")
+    if len(set(value)) != len(value):
+        raise bad(f"{what} {value} names one twice")
+    return list(value)
+
+
+def _budgets(value: Any, bad: Any) -> dict[str, dict[str, Any]]:
+    if not isinstance(value, dict) or not value:
+        raise bad(f"budgets {value!r} is not a table of named budgets")
+    budgets = {}
+    for name, budget in value.items():
+        if not name.replace("-", "").isalnum():
+            raise bad(f"budget name {name!r} is not made of letters, digits and dashes")
+        if not isinstance(budget, dict) or not budget or set(budget) - {"steps", "seconds"}:
+            raise bad(f"budget {name!r} = {budget!r} is not a table of steps and/or seconds")
+        # Seconds alone: no step limit (a trainer's default budget_steps would be one).
+        fields = {"budget_steps": budget.get("steps")}
+        if "seconds" in budget:
+            fields["budget_seconds"] = budget["seconds"]
+        budgets[name] = fields
+    return budgets
+
+
+def _options(value: Any, trainers: list[str], algorithms: list[str], bad: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise bad(f"options {value!r} is not a table")
+    for key, table in value.items():
+        trainer, _, algorithm = key.partition("/")
+        known = key == "all" or key in TRAINERS or key in ALGORITHMS
+        known = known or (trainer in TRAINERS and algorithm in ALGORITHMS)
+        if not known:
+            raise bad(
+                f"options.{key}: not 'all', a trainer, an algorithm or a trainer/algorithm pair"
+            )
+        if not isinstance(table, dict):
+            raise bad(f"options.{key} {table!r} is not a table")
+        for reserved in ("seed", "algo", "regime", "curator", "robot"):
+            if reserved in table:
+                raise bad(f"options.{key} sets {reserved!r}, which the study's grid decides")
+    return value
+
+
+def _excluded(value: Any, bad: Any) -> set[tuple[str, str]]:
+    if not isinstance(value, list) or not all(
+        isinstance(e, dict) and set(e) == {"trainer", "algorithm"} for e in value
+    ):
+        raise bad(f"exclude {value!r} is not a list of {{trainer, algorithm}} tables")
+    return {(e["trainer"], e["algorithm"]) for e in value}
+
+
+def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` updated with ``extra``; nested tables (hyperparameters...) merge key by key."""
+    merged = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(merged.get(key), Mapping):
+            merged[key] = _merge(dict(merged[key]), value)
+        else:
+            merged[key] = copy.deepcopy(value)
+    return merged
+
+
+def _config(
+    trainer: str,
+    algorithm: str,
+    budget: dict[str, Any],
+    robot: str,
+    seed: int,
+    options: dict[str, Any],
+) -> dict[str, Any]:
+    config: dict[str, Any] = {"algo": algorithm, "robot": robot, "seed": seed}
+    config.update(trainer_fields(trainer))
+    config.update(budget)
+    for key in ("all", trainer, algorithm, f"{trainer}/{algorithm}"):
+        config = _merge(config, options.get(key, {}))
+    return config
+
+
+def _checked(run: PlannedRun, bad: Any) -> PlannedRun:
+    """``run`` with its config as its trainer's config class checks and completes it."""
+    config_class = run_class(run.algorithm).config_class
+    try:
+        checked = config_class.from_dict(run.config).validate()
+        if run.algorithm in EVOLUTION_ALGORITHMS:  # its options are checked when it starts
+            from evolution.algorithms import algorithm_class
+
+            algorithm_class(run.algorithm).config_class.from_dict(checked.algorithm)
+    except (ValueError, TypeError) as problem:
+        raise bad(f"run {run.id}: {problem}") from None
+    return PlannedRun(run.trainer, run.algorithm, run.budget, run.seed, checked.to_dict())

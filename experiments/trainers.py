@@ -1,0 +1,55 @@
+"""Which trainer runs an algorithm, and what a study's trainer names mean.
+
+A study crosses *trainers* (how the mazes an agent meets are chosen: a
+regime, and for EDHuCAT the curator standing in for the paper's human) with
+*algorithms* (how the agent learns). The algorithm decides the package that
+runs it: ``a2c`` and ``ppo`` are :mod:`rl_baselines` (stable-baselines3),
+``cmaes`` and ``neat`` are :mod:`evolution`. Both are imported only when a
+run needs them (torch is slow to import).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from amaze.errors import UsageError
+from amaze.runs.lifecycle import Run
+
+__all__ = ["ALGORITHMS", "RL_ALGORITHMS", "TRAINERS", "run_class", "trainer_fields"]
+
+#: The algorithms of each package.
+RL_ALGORITHMS = ("a2c", "ppo")
+EVOLUTION_ALGORITHMS = ("cmaes", "neat")
+ALGORITHMS = (*RL_ALGORITHMS, *EVOLUTION_ALGORITHMS)
+
+#: A study's trainer names, with the config fields each sets.
+TRAINERS: dict[str, dict[str, Any]] = {
+    "direct": {"regime": "direct"},
+    "interpolation": {"regime": "interpolation"},
+    "edhucat-careful": {"regime": "edhucat", "curator": "careful"},
+    "edhucat-moderate": {"regime": "edhucat", "curator": "moderate"},
+    "edhucat-risky": {"regime": "edhucat", "curator": "risky"},
+    "edhucat-random": {"regime": "edhucat", "curator": "random"},
+    "edens": {"regime": "edens"},
+    "coevolution": {"regime": "coevolution"},
+}
+
+
+def run_class(algo: Any) -> type[Run]:
+    """The run class of the package that runs ``algo``."""
+    if algo in RL_ALGORITHMS:
+        from rl_baselines.train import SB3Run
+
+        return SB3Run
+    if algo in EVOLUTION_ALGORITHMS:
+        from evolution.run import EvolutionRun
+
+        return EvolutionRun
+    raise UsageError(f"algorithm {algo!r} (choose from {', '.join(ALGORITHMS)})")
+
+
+def trainer_fields(trainer: Any) -> dict[str, Any]:
+    """The config fields of the trainer called ``trainer``."""
+    if trainer not in TRAINERS:
+        raise UsageError(f"trainer {trainer!r} (choose from {', '.join(TRAINERS)})")
+    return dict(TRAINERS[trainer])

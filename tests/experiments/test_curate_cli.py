@@ -103,11 +103,12 @@ class Page:
         assert response.status_code == 200, response.text
 
 
-def start(*args: str) -> tuple[subprocess.Popen, str]:
+def start(*args: str, stderr: int = subprocess.DEVNULL) -> tuple[subprocess.Popen, str]:
+    """``amaze-curate ARGS`` on any free port, and the address it printed."""
     process = subprocess.Popen(
         [sys.executable, "-m", "experiments.curate.cli", *args, "--port", "0", "--no-browser"],
         stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
+        stderr=stderr,
         text=True,
         cwd=ROOT,
         env={**os.environ, "NUMBA_NUM_THREADS": "1"},
@@ -157,19 +158,8 @@ def test_a_killed_server_resumes_where_it_stopped(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_ctrl_c_during_training_stops_cleanly_and_the_run_resumes(tmp_path: Path) -> None:
     out = tmp_path / "me"
-    process = subprocess.Popen(
-        [
-            *(sys.executable, "-m", "experiments.curate.cli", "--out", str(out)),
-            *("--budget-steps", "3000000", "--port", "0", "--no-browser"),
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=ROOT,
-        env={**os.environ, "NUMBA_NUM_THREADS": "1"},
-    )
-    assert process.stdout is not None
-    page = Page(process.stdout.readline().strip())
+    process, url = start("--out", str(out), "--budget-steps", "3000000", stderr=subprocess.PIPE)
+    page = Page(url)
     deadline = time.monotonic() + 120
     while not page.client.get(f"{page.base}/api/state").json()["training"]["branches"]:
         assert time.monotonic() < deadline

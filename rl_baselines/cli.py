@@ -4,6 +4,7 @@
 
     amaze-train --algo ppo --regime direct --robot DD --budget-steps 100000 --seed 0 --out runs/ppo
     amaze-train --resume runs/ppo
+    amaze-train --algo ppo --budget-seconds 600 --out runs/ppo-10min   # a wall-clock budget
     amaze-train --algo ppo --regime edhucat --curator random --stages 3 --budget-steps 30000 \\
         --branches 2 --out runs/edhucat
     amaze-train --replay runs/edhucat --out runs/edhucat-again   # the same curriculum

@@ -18,8 +18,12 @@ that evolves beside it, in *rounds*:
    which ``summary.json`` also reports on 32 unseen family mazes.
 
 The budget is ``budget_steps`` training steps (spent in whole rollouts, as in
-the other regimes); the steps of the scoring and validation episodes are
-reported apart (``scoring_steps``, ``validation_steps``).
+the other regimes) and/or ``budget_seconds`` seconds of the run (everything
+it does, over every resumed part); rounds go on until one of them is reached,
+so a run may end up to one round past it, and it plays at least one round
+(its agent is a champion of the validations). The steps of the scoring and
+validation episodes are reported apart (``scoring_steps``,
+``validation_steps``).
 
 **Run folder**: ``config.json``; ``progress.csv`` (a row per round);
 ``checkpoints/model-<round>.zip`` and ``checkpoints/state.pkl`` (the maze
@@ -31,7 +35,8 @@ between the two leaves the previous pair); ``champion.zip`` +
 ``coevolution/validation_success``, ``coevolution/population_difficulty``...).
 A resumed run continues from the last checkpoint with the population as it
 was; SB3 does not save its random state, so it is a faithful continuation,
-not a bit-identical replay.
+not a bit-identical replay. Where a run on a seconds budget ends depends on
+the machine's speed as well.
 """
 
 from __future__ import annotations
@@ -134,7 +139,15 @@ class SB3CoevolutionRun(Run):
         return as_mazes(rotations(validation_mazes(c.target, self.options.validation, c.seed)))
 
     def seconds(self) -> float:
+        """Wall-clock seconds of the run, over every resumed part of it."""
         return self.seconds_before + (time.monotonic() - self.started)
+
+    def budget_spent(self) -> bool:
+        """True once the steps or the seconds reach their budget (``None``: no limit)."""
+        c, s = self.config, self.state
+        return (c.budget_steps is not None and s.steps >= c.budget_steps) or (
+            c.budget_seconds is not None and self.seconds() >= c.budget_seconds
+        )
 
     def _env(self, mazes: list[Maze]) -> SB3VecEnv:
         c = self.config
@@ -183,13 +196,19 @@ class SB3CoevolutionRun(Run):
         return state.round
 
     def train(self, progress_bar: bool) -> None:
-        """Rounds until the budget is spent, checkpointing every ``eval_every`` steps."""
+        """Rounds until a budget is spent (at least one), checkpointing every ``eval_every`` steps.
+
+        The budget is looked at once after each round, so the round that
+        spends it is also the one checkpointed last.
+        """
         c, s = self.config, self.state
         last_checkpoint = s.steps
-        while s.steps < c.budget_steps:
+        spent = s.round > 0 and self.budget_spent()
+        while not spent:
             row = self.round()
             self.progress.append(row)
-            if s.steps - last_checkpoint >= c.eval_every or s.steps >= c.budget_steps:
+            spent = self.budget_spent()
+            if s.steps - last_checkpoint >= c.eval_every or spent:
                 self.save_checkpoint()
                 last_checkpoint = s.steps
         if s.round == 0 or not (self.out / "champion.zip").exists():
@@ -214,6 +233,7 @@ class SB3CoevolutionRun(Run):
             "validation_steps": s.validation_steps,
             "seconds": round(self.seconds(), 3),
             "budget_steps": c.budget_steps,
+            "budget_seconds": c.budget_seconds,
             "champion_validation_reward": s.champion_fitness,
             "champion_validation_success": s.champion_success,
             "champion_round": s.champion_round,

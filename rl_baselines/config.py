@@ -16,10 +16,20 @@ largest power of two that divides the rollout, at most SB3's default. The
 choice is made once from the config (so a resumed run makes the same one),
 holds for the whole run, and is recorded in ``summary.json``
 (``hyperparameters_used``). Hyperparameters the user set are never changed.
+A run on a seconds budget alone (``budget_steps`` null) has no step allowance
+to fit a rollout to: it keeps SB3's default rollout (set ``n_steps`` for short
+budgets).
+
+**Budgets.** ``budget_steps`` env steps and/or ``budget_seconds`` wall-clock
+seconds of training, in every regime; with both, training stops at whichever
+is reached first. ``--budget-seconds`` alone on the command line is a pure
+time budget (no step limit). Where a run on a seconds budget stops depends on
+the machine's speed, so it neither replays nor resumes bit-identically.
 """
 
 from __future__ import annotations
 
+import argparse
 import inspect
 import math
 from dataclasses import dataclass
@@ -40,7 +50,13 @@ MIN_N_STEPS = 8
 
 @dataclass
 class TrainConfig(CurriculumConfig):
-    """Everything that defines a training run (stored as ``config.json``)."""
+    """Everything that defines a training run (stored as ``config.json``).
+
+    The budget is ``budget_steps`` env steps and/or ``budget_seconds``
+    seconds of training (either may be ``None``, not both); a run stops at
+    whichever it reaches first. A config file without ``budget_seconds`` (one
+    written before it existed) is a steps budget, as it was.
+    """
 
     error = RLConfigError
     options_field = "hyperparameters"
@@ -49,7 +65,14 @@ class TrainConfig(CurriculumConfig):
     default_epochs = 10
 
     algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
-    budget_steps: int = option(3_000_000, "environment steps")
+    budget_steps: int | None = option(
+        3_000_000, "environment steps (none when --budget-seconds is given alone)"
+    )
+    budget_seconds: float | None = option(
+        None,
+        "wall-clock seconds of training; where such a run stops depends on the machine's"
+        " speed, so it neither replays nor resumes bit for bit",
+    )
     eval_every: int = option(50_000, "environment steps between evaluations and checkpoints")
     n_envs: int = option(4, "environments stepped together (a multiple of 4: one per rotation)")
     tensorboard: bool = option(True, "write TensorBoard logs to OUT/tensorboard")
@@ -64,7 +87,8 @@ class TrainConfig(CurriculumConfig):
         algorithm_class(self.algo)
         self.algo = self.algo.lower()
         super().validate()
-        for name in ("budget_steps", "eval_every", "n_envs"):
+        self._check_budget()
+        for name in ("eval_every", "n_envs"):
             value = check_integer(name, getattr(self, name), minimum=1, error=RLConfigError)
             setattr(self, name, value)
         if not isinstance(self.tensorboard, bool):
@@ -77,6 +101,36 @@ class TrainConfig(CurriculumConfig):
         if self.regime == "coevolution":
             self._coevolution_batch()
         return self
+
+    def _check_budget(self) -> None:
+        """``budget_steps`` (an integer >= 1) and/or ``budget_seconds`` (a number > 0)."""
+        if self.budget_steps is not None:
+            self.budget_steps = check_integer(
+                "budget_steps", self.budget_steps, minimum=1, error=RLConfigError
+            )
+        if self.budget_seconds is not None:
+            self.budget_seconds = check_number(
+                "budget_seconds",
+                self.budget_seconds,
+                minimum=0,
+                strict_minimum=True,
+                error=RLConfigError,
+            )
+        if self.budget_steps is None and self.budget_seconds is None:
+            raise RLConfigError(
+                f"budget_steps {self.budget_steps!r} and budget_seconds"
+                f" {self.budget_seconds!r}: a run needs at least one budget"
+            )
+
+    @classmethod
+    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+        """``--budget-seconds`` without ``--budget-steps`` is a wall-clock budget alone.
+
+        A ``--config`` file that sets ``budget_steps`` keeps it (both budgets apply).
+        """
+        if getattr(args, "budget_seconds", None) is not None and args.budget_steps is None:
+            data.setdefault("budget_steps", None)
+        return data
 
     def _coevolution_batch(self) -> None:
         """One environment per rotation of each batch maze: ``batch`` is ``n_envs / 4``."""
@@ -142,17 +196,21 @@ def fitted_hyperparameters(config: TrainConfig) -> dict[str, Any]:
     The user's, with ``n_steps`` (and PPO's ``batch_size``) fitted to the
     first branch's allowance when the user did not set them and SB3's
     default rollout does not fit it; ``n_steps`` and ``batch_size`` (PPO)
-    are always present, so the result says what ran.
+    are always present, so the result says what ran. Without ``budget_steps``
+    (a seconds budget alone) there is no allowance in steps: SB3's defaults
+    stay.
     """
     c = config
     assert c.stages is not None and c.branches is not None
     defaults = sb3_defaults(c.algo)
     used = dict(c.hyperparameters)
-    allowance = branch_allowance(c.budget_steps, 0, 0, c.stages, c.branches, c.epochs)
+    allowance = None
+    if c.budget_steps is not None:
+        allowance = branch_allowance(c.budget_steps, 0, 0, c.stages, c.branches, c.epochs)
     fitted = False
     if "n_steps" not in used:
         n_steps = int(defaults["n_steps"])
-        if n_steps * c.n_envs > allowance:
+        if allowance is not None and n_steps * c.n_envs > allowance:
             fits = max(allowance // c.n_envs, 1)
             n_steps = min(n_steps, max(MIN_N_STEPS, 1 << (fits.bit_length() - 1)))
             fitted = True

@@ -7,7 +7,11 @@ the ``interpolation`` curator and one branch) whose learner is an
 agent's model (weights and optimiser state) and trains it on its maze's 4
 rotations for its allowance, in whole rollouts, evaluated (and checkpointed)
 every ``eval_every`` steps and stopped early once every training episode is
-optimal.
+optimal. The allowance is env steps and/or seconds: a ``budget_seconds`` is
+shared between stages and branches like steps
+(:func:`~amaze.curriculum.regimes.branch_seconds`), and a branch on seconds
+stops at the step that spends them; such a run depends on the machine's
+speed, so it neither replays nor resumes bit-identically.
 
 Rollouts are fitted to small budgets (see :func:`rl_baselines.config.fitted_hyperparameters`);
 ``summary.json`` records them (``hyperparameters_used``). TensorBoard logs

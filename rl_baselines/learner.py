@@ -1,22 +1,28 @@
 """An SB3 A2C/PPO model as a curriculum learner (:class:`amaze.curriculum.learner.Learner`).
 
-:class:`SB3Learner` trains its model in sessions (``train(mazes, budget)``):
-the model's environment becomes an :class:`~rl_baselines.vec_env.SB3VecEnv`
-over the session's mazes (environment ``k`` plays ``mazes[k % len(mazes)]``),
-and SB3 learns in whole rollouts (``n_steps x n_envs`` steps): as many as fit
-in the budget, at least one. At the start of a rollout, when ``eval_every``
-steps have passed since the last evaluation (and at the session's start), the
-model is evaluated on the session's mazes (the shared
-:class:`~amaze.evaluation.protocol.Evaluator`, deterministic actions) and the
-session's ``checkpoint()`` is called; once every episode is optimal
-(R̄ = 1) the session stops: it has converged.
+:class:`SB3Learner` trains its model in sessions (``train(mazes, budget_steps,
+budget_seconds=...)``): the model's environment becomes an
+:class:`~rl_baselines.vec_env.SB3VecEnv` over the session's mazes (environment
+``k`` plays ``mazes[k % len(mazes)]``), and SB3 learns in whole rollouts
+(``n_steps x n_envs`` steps): as many as fit in the steps budget, at least
+one. A seconds budget (the session's training seconds over every resumed part
+of it) ends the session at the first env step that finds it spent, the
+rollout then in progress not learned from; with both budgets the session ends
+at whichever comes first. Where a session on a seconds budget ends depends on
+the machine's speed, so it does not replay, nor resume, bit-identically. At
+the start of a rollout, when ``eval_every`` steps have passed since the last
+evaluation (and at the session's start), the model is evaluated on the
+session's mazes (the shared :class:`~amaze.evaluation.protocol.Evaluator`,
+deterministic actions) and the session's ``checkpoint()`` is called; once
+every episode is optimal (R̄ = 1) the session stops: it has converged.
 
 Files (:meth:`SB3Learner.save`, each written atomically): ``model.zip``, SB3's
 zip (weights and optimiser state), and ``learner.json``: the learner's own
-settings and the session in progress, if any (mazes, budget, steps, seconds,
+settings and the session in progress, if any (mazes, budgets, steps, seconds,
 evaluation state), so a learner saved from ``checkpoint()`` and loaded again
-continues its session. :func:`load_sb3_learner` reads them back without
-unpickling (:func:`~rl_baselines.agent.load_sb3_model`), every field checked.
+continues its session (one with the same mazes and budgets).
+:func:`load_sb3_learner` reads them back without unpickling
+(:func:`~rl_baselines.agent.load_sb3_model`), every field checked.
 """
 
 from __future__ import annotations
@@ -52,6 +58,8 @@ LEARNER_FILE = "learner.json"
 LEARNER_FORMAT = "sb3-learner"
 #: R̄ at or above this counts as optimal (R̄ is 1 for a run in l-1 steps).
 OPTIMAL = 1.0 - 1e-9
+#: ``total_timesteps`` of a ``learn`` with no step limit (a seconds budget alone).
+UNLIMITED_STEPS = 2**62
 
 
 def new_sb3_model(
@@ -80,7 +88,11 @@ def new_sb3_model(
 
 
 class _SessionCallback(BaseCallback):
-    """At the start of a rollout: evaluate when due, then checkpoint; stop once converged."""
+    """At the start of a rollout: evaluate when due, then checkpoint.
+
+    Stops learning (at the next step) once converged, and at the first step
+    that finds the session's seconds spent.
+    """
 
     def __init__(
         self,
@@ -99,10 +111,13 @@ class _SessionCallback(BaseCallback):
         steps = self.steps_before + self.model.num_timesteps - self.start
         if self.progress is not None:
             self.progress(int(steps))
+        if self.learner._out_of_time():
+            return  # the session ends at the next step: no evaluation nor checkpoint
         self.learner._session_point(steps)
 
     def _on_step(self) -> bool:
-        return not self.learner.session["converged"]
+        assert self.learner.session is not None
+        return not self.learner.session["converged"] and not self.learner._out_of_time()
 
 
 class SB3Learner:
@@ -145,8 +160,13 @@ class SB3Learner:
         """Env steps of one rollout."""
         return int(self.model.n_steps) * self.n_envs
 
-    def session_target(self, budget_steps: int) -> int:
-        """The steps of a whole session: whole rollouts within the budget, at least one."""
+    def session_target(self, budget_steps: int | None) -> int | None:
+        """The steps of a whole session: whole rollouts within the budget, at least one.
+
+        ``None`` without a steps budget (a session on seconds alone has no step limit).
+        """
+        if budget_steps is None:
+            return None
         return max(1, budget_steps // self.rollout) * self.rollout
 
     # -- the protocol -----------------------------------------------------------
@@ -162,21 +182,36 @@ class SB3Learner:
     ) -> TrainingOutcome:
         """One session on ``mazes`` (continued if this learner was saved inside it).
 
-        The budget is env steps, spent in whole rollouts: a time budget
-        (``budget_seconds``) is refused, as ``TrainConfig`` has none.
+        The budget is ``budget_steps`` env steps, spent in whole rollouts (at
+        least one), and/or ``budget_seconds`` seconds of the session (``None``:
+        no limit of that kind, not both); the session ends at whichever comes
+        first, or once converged. A saved session continues only when the
+        mazes and both budgets are the same.
         """
-        if budget_steps is None or budget_seconds is not None:
+        if budget_steps is not None:
+            budget_steps = check_integer(
+                "budget_steps", budget_steps, minimum=0, error=RLConfigError
+            )
+        if budget_seconds is not None:
+            budget_seconds = check_number(
+                "budget_seconds", budget_seconds, minimum=0, error=RLConfigError
+            )
+        if budget_steps is None and budget_seconds is None:
             raise RLConfigError(
-                f"an SB3 learner's session takes a budget of env steps, not {budget_steps!r}"
-                f" steps and {budget_seconds!r} seconds"
+                "an SB3 learner's session needs budget_steps or budget_seconds (both are None)"
             )
         mazes = [MazeSpec.from_string(str(m)).to_string() for m in mazes]
-        budget_steps = int(budget_steps)
         session = self.session
-        if session is None or session["mazes"] != mazes or session["budget"] != budget_steps:
+        if (
+            session is None
+            or session["mazes"] != mazes
+            or session["budget"] != budget_steps
+            or session.get("budget_seconds") != budget_seconds
+        ):
             session = self.session = {
                 "mazes": mazes,
                 "budget": budget_steps,
+                "budget_seconds": budget_seconds,
                 "steps": 0,
                 "seconds": 0.0,
                 "converged": False,
@@ -194,13 +229,13 @@ class SB3Learner:
         if session["steps"]:
             seed = int(np.random.SeedSequence([seed, session["steps"]]).generate_state(1)[0])
         model.set_random_seed(seed & 0x7FFF_FFFF)
-        if not session["converged"] and session["steps"] < target:
+        if self._goes_on(target):
             self._session_point(session["steps"])
-        if not session["converged"] and session["steps"] < target:
+        if self._goes_on(target):
             start = int(model.num_timesteps)
             callback = _SessionCallback(self, start, session["steps"], progress)
             model.learn(
-                total_timesteps=target - session["steps"],
+                total_timesteps=UNLIMITED_STEPS if target is None else target - session["steps"],
                 callback=callback,
                 reset_num_timesteps=False,
                 tb_log_name=self.log_name,
@@ -268,8 +303,24 @@ class SB3Learner:
     # -- the session's own --------------------------------------------------------
 
     def _seconds(self) -> float:
+        """Seconds of the session in progress, over every resumed part of it."""
         started, before = self._clock
         return before + (time.monotonic() - started)
+
+    def _out_of_time(self) -> bool:
+        """True once the session in progress has spent its seconds budget (if it has one)."""
+        budget = self.session.get("budget_seconds") if self.session is not None else None
+        return budget is not None and self._seconds() >= budget
+
+    def _goes_on(self, target: int | None) -> bool:
+        """The session in progress has budget left (steps and seconds) and has not converged."""
+        session = self.session
+        assert session is not None
+        return (
+            not session["converged"]
+            and (target is None or session["steps"] < target)
+            and not self._out_of_time()
+        )
 
     def _session_point(self, steps: int, logger: Any = None) -> None:
         """A rollout starts at ``steps`` of the session: evaluate if due, then checkpoint."""
@@ -313,9 +364,19 @@ def _checked_session(data: Any, source: str) -> dict[str, Any] | None:
     if not isinstance(data.get("converged"), bool):
         raise RLConfigError(f"{source}: session converged {data.get('converged')!r} is not a bool")
     last = data.get("last_eval")
+    # A session saved before seconds budgets existed has no budget_seconds: steps alone.
+    budget = None if data.get("budget") is None else integer("budget", 0)
+    seconds = data.get("budget_seconds")
+    if seconds is not None:
+        seconds = check_number(
+            f"{source}: session budget_seconds", seconds, minimum=0, error=RLConfigError
+        )
+    if budget is None and seconds is None:
+        raise RLConfigError(f"{source}: session has no budget (budget and budget_seconds null)")
     return {
         "mazes": mazes,
-        "budget": integer("budget", 0),
+        "budget": budget,
+        "budget_seconds": seconds,
         "steps": integer("steps", 0),
         "seconds": check_number(
             f"{source}: session seconds", data.get("seconds"), minimum=0, error=RLConfigError

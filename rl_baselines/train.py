@@ -11,12 +11,19 @@ The **direct** regime (paper §4): the agent trains on
 :data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE` in its 4 rotations (environment ``k``
 plays rotation ``k % 4``; ``n_envs`` is a multiple of 4) and is evaluated every
 ``eval_every`` env steps on :data:`~amaze.evaluation.suite.PAPER_EVALUATION_MAZE`'s 4
-rotations. Training stops when the budget (``budget_steps`` env steps) is spent
-or when all 4 evaluation episodes are optimal (paper reward R̄ = 1).
+rotations. Training stops when the budget is spent (``budget_steps`` env steps
+and/or ``budget_seconds`` seconds, whichever comes first) or when all 4
+evaluation episodes are optimal (paper reward R̄ = 1).
 
-Budgets are counted in env steps and spent in whole rollouts
-(``n_steps x n_envs``), so the run may end up to one rollout past its budget;
-``summary.json`` reports the steps actually taken.
+A steps budget is spent in whole rollouts (``n_steps x n_envs``), so the run
+may end up to one rollout past it. A seconds budget is the run's training
+time over every resumed part (:meth:`SB3Run.seconds`: model building,
+rollouts, SB3's updates, evaluations and checkpoints); learning stops at the
+first env step that finds it spent, and the rollout then in progress is not
+learned from (nor is an evaluation due at a rollout start made then); the
+final agent is evaluated as always. Where such a run stops depends on the
+machine's speed, so it does not replay, nor resume, bit-identically.
+``summary.json`` reports the steps and seconds actually spent.
 
 Run folder (``out``):
 
@@ -63,7 +70,7 @@ from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, load_sb3_model
 from rl_baselines.config import TrainConfig
-from rl_baselines.learner import OPTIMAL, new_sb3_model
+from rl_baselines.learner import OPTIMAL, UNLIMITED_STEPS, new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
 
 __all__ = ["SB3Run", "TrainConfig", "resume", "train"]
@@ -103,12 +110,15 @@ def _checked_state(state: dict[str, Any]) -> dict[str, Any]:
 class _EvaluationCallback(BaseCallback):
     """Every ``eval_every`` steps, at the start of a rollout: evaluate, log, checkpoint.
 
-    Stops training (at the next step) once every evaluation episode is optimal.
+    Stops training (at the next step) once every evaluation episode is
+    optimal, and at the first step that finds the seconds budget spent.
+    ``bar``, when given, shows the seconds spent (a run without a step limit).
     """
 
-    def __init__(self, run: SB3Run) -> None:
+    def __init__(self, run: SB3Run, bar: Any = None) -> None:
         super().__init__(verbose=0)
         self.run = run
+        self.bar = bar
         self.evaluator: Evaluator | None = None
 
     def evaluate_now(self) -> None:
@@ -138,13 +148,21 @@ class _EvaluationCallback(BaseCallback):
         )
         run.save_checkpoint()
 
+    def show_seconds(self) -> None:
+        """Move the seconds bar, if any, to the run's seconds."""
+        if self.bar is not None:
+            self.bar.update(min(self.run.seconds(), self.bar.total) - self.bar.n)
+
     def _on_rollout_start(self) -> None:
+        self.show_seconds()
+        if self.run.out_of_time():
+            return  # learning stops at the next step; the final evaluation follows
         steps = int(self.model.num_timesteps)
         if steps == 0 or steps - self.run.last_eval_steps >= self.run.config.eval_every:
             self.evaluate_now()
 
     def _on_step(self) -> bool:
-        return not self.run.converged
+        return not self.run.converged and not self.run.out_of_time()
 
 
 class SB3Run(Run):
@@ -174,6 +192,11 @@ class SB3Run(Run):
     def seconds(self) -> float:
         """Wall-clock seconds of training, over every resumed part of the run."""
         return self.seconds_before + (time.monotonic() - self.started)
+
+    def out_of_time(self) -> bool:
+        """True once the run's seconds reach ``budget_seconds`` (never without one)."""
+        budget = self.config.budget_seconds
+        return budget is not None and self.seconds() >= budget
 
     def _env(self) -> SB3VecEnv:
         """The training environments (one rotation per environment)."""
@@ -239,26 +262,43 @@ class SB3Run(Run):
         return self.model.num_timesteps
 
     def train(self, progress_bar: bool) -> None:
-        """Train until the budget is spent or the evaluation episodes are all optimal."""
+        """Train until a budget is spent or the evaluation episodes are all optimal.
+
+        SB3's progress bar counts steps; a run without a step limit shows the
+        seconds spent instead.
+        """
+        from tqdm import tqdm
+
         config, model = self.config, self.model
         assert model is not None
-        callback = _EvaluationCallback(self)
-        mazes = rotations(PAPER_EVALUATION_MAZE)
-        callback.evaluator = Evaluator(config.robot, mazes=mazes, inputs=False)
-        remaining = config.budget_steps - int(model.num_timesteps)
-        if remaining > 0 and not self.converged:
-            model.learn(
-                total_timesteps=remaining,
-                callback=callback,
-                reset_num_timesteps=False,
-                tb_log_name="direct",
-                progress_bar=progress_bar,
-            )
-        # A converged run stopped one step after its last evaluation, before any
-        # training on it: the model evaluated is the final one, so no second row.
-        if self.last_eval_steps != int(model.num_timesteps) and not self.converged:
-            callback.init_callback(model)
-            callback.evaluate_now()
+        steps_bar = progress_bar and config.budget_steps is not None
+        with tqdm(
+            total=config.budget_seconds,
+            unit="s",
+            disable=not progress_bar or steps_bar,
+            desc=f"{config.algo} direct seed {config.seed}",
+            dynamic_ncols=True,
+        ) as bar:
+            callback = _EvaluationCallback(self, None if bar.disable else bar)
+            mazes = rotations(PAPER_EVALUATION_MAZE)
+            callback.evaluator = Evaluator(config.robot, mazes=mazes, inputs=False)
+            remaining = UNLIMITED_STEPS
+            if config.budget_steps is not None:
+                remaining = config.budget_steps - int(model.num_timesteps)
+            if remaining > 0 and not self.converged and not self.out_of_time():
+                model.learn(
+                    total_timesteps=remaining,
+                    callback=callback,
+                    reset_num_timesteps=False,
+                    tb_log_name="direct",
+                    progress_bar=steps_bar,
+                )
+            # A converged run stopped one step after its last evaluation, before any
+            # training on it: the model evaluated is the final one, so no second row.
+            if self.last_eval_steps != int(model.num_timesteps) and not self.converged:
+                callback.init_callback(model)
+                callback.evaluate_now()
+            callback.show_seconds()
 
     def final_agent(self) -> SB3Agent:
         assert self.model is not None
@@ -271,6 +311,7 @@ class SB3Run(Run):
             "env_steps": int(self.model.num_timesteps),
             "seconds": round(self.seconds(), 3),
             "budget_steps": c.budget_steps,
+            "budget_seconds": c.budget_seconds,
             "converged": self.converged,
             "algo": c.algo,
             "regime": c.regime,

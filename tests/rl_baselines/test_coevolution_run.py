@@ -76,6 +76,23 @@ def test_a_resumed_run_goes_on_with_its_population(tmp_path: Path) -> None:
     assert json.loads((out / "summary.json").read_text())["rounds"] == 6
 
 
+def test_a_coevolution_run_on_seconds_alone_stops_once_they_are_spent(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    seconds = [*ARGS[:4], "--budget-seconds", "3", *ARGS[6:]]
+    assert main([*seconds, "--config", str(_config(tmp_path)), "--out", str(out)]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["budget_steps"] is None and config["budget_seconds"] == 3.0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["budget_seconds"] == 3.0 and summary["rounds"] >= 1
+    rows = _rows(out, "progress.csv")
+    assert [int(r["round"]) for r in rows] == list(range(1, summary["rounds"] + 1))
+    # the last round is the first to find the seconds spent, and it is checkpointed
+    assert 3 <= summary["seconds"] < 3 + 30
+    assert len(rows) == 1 or float(rows[-2]["seconds"]) < 3
+    models = [p.name for p in (out / "checkpoints").glob("model-*.zip")]
+    assert models == [f"model-{summary['rounds']}.zip"]
+
+
 def test_the_regime_chooses_the_run_class() -> None:
     config = TrainConfig.from_dict({"regime": "coevolution"})
     assert SB3Run.run_class_for(config) is SB3CoevolutionRun

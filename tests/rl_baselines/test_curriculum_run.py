@@ -85,6 +85,39 @@ def test_an_edhucat_run_writes_the_curriculum_folder(a2c_run: Path) -> None:
     assert _learner_steps(out / "stages/stage-1/branch-1") == 140 + 220
 
 
+def test_an_edhucat_run_on_seconds_alone_shares_them_between_stages_and_branches(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rl_baselines.learner
+
+    # never optimal: every branch trains until its seconds are spent
+    monkeypatch.setattr(rl_baselines.learner, "OPTIMAL", 2.0)
+    out = tmp_path / "seconds"
+    argv = [*A2C[: A2C.index("--budget-steps")], "--budget-seconds", "4"]
+    argv += ["--eval-every", "200", "--no-progress", "--no-tensorboard", "--seed", "3"]
+    assert main([*argv, "--out", str(out)]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["budget_steps"] is None and config["budget_seconds"] == 4.0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["budget_seconds"] == 4.0 and summary["hyperparameters_used"] == {"n_steps": 5}
+    results = {
+        str(path.parent.relative_to(out / "stages")): json.loads(path.read_text())
+        for path in sorted(out.glob("stages/*/branch-*/result.json"))
+    }
+    assert list(results) == ["stage-0/branch-0", "stage-1/branch-0", "stage-1/branch-1"]
+    assert all(r["env_steps"] > 0 for r in results.values())
+    # each branch trains its share of what is left: stage 0's one 4 s / (K x S),
+    # stage 1's two what stage 0 left (its training, evaluation and picture) / K
+    first = results["stage-0/branch-0"]
+    allowances = {"stage-0/branch-0": 4 / 4}
+    for branch in ("stage-1/branch-0", "stage-1/branch-1"):
+        allowances[branch] = (4 - first["seconds"]) / 2
+    for branch, allowance in allowances.items():
+        training = results[branch]["time"]["training"]  # rounded to the millisecond
+        assert allowance - 1e-3 <= training < allowance + 30, (branch, training, allowance)
+    assert summary["env_steps"] == sum(r["env_steps"] for r in results.values())
+
+
 def test_ppo_fits_its_rollout_to_a_tiny_budget(tmp_path: Path) -> None:
     out = tmp_path / "ppo"
     argv = ["--algo", "ppo", "--regime", "edhucat", "--curator", "random", "--stages", "2"]
@@ -167,6 +200,44 @@ def test_resume_after_a_kill_mid_stage_continues_the_branch(
     # the session went on from its checkpoint: 140 (stage 0) + 220, not 140 + 80 + 220
     assert _learner_steps(out / "stages/stage-1/branch-0") == 360
     assert [int(r["branches"]) for r in _rows(out)] == [1, 2, 3]
+
+
+def test_resume_mid_stage_of_a_seconds_run_continues_the_session(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rl_baselines.learner
+
+    monkeypatch.setattr(rl_baselines.learner, "OPTIMAL", 2.0)  # only the clock ends a branch
+    out = tmp_path / "run"
+    argv = [*A2C[: A2C.index("--budget-steps")], "--budget-seconds", "3"]
+    argv += ["--eval-every", "40", "--no-progress", "--no-tensorboard", "--seed", "4"]
+    save = SB3Learner.save
+    saves = 0
+
+    def killing_save(learner: SB3Learner, folder: Path) -> None:
+        nonlocal saves
+        save(learner, folder)
+        if Path(folder).name == "checkpoint" and Path(folder).parent.parent.name == "stage-1":
+            saves += 1
+            if saves == 2:  # 40 steps into stage 1's first branch
+                raise _Killed
+
+    monkeypatch.setattr(SB3Learner, "save", killing_save)
+    with pytest.raises(_Killed):
+        main([*argv, "--out", str(out)])
+    monkeypatch.setattr(SB3Learner, "save", save)
+    checkpoint = out / "stages/stage-1/branch-0/checkpoint"
+    session = json.loads((checkpoint / "learner.json").read_text())["session"]
+    first = json.loads((out / "stages/stage-0/branch-0/result.json").read_text())
+    # the session records its allowance of seconds, which the resumed run computes again
+    assert session["budget"] is None and session["steps"] == 40
+    assert session["budget_seconds"] == (3 - first["seconds"]) / 2
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    result = json.loads((out / "stages/stage-1/branch-0/result.json").read_text())
+    assert result["env_steps"] > 40 and not checkpoint.exists()
+    # the session went on from its checkpoint: stage 0's steps + the session's, no more
+    steps = _learner_steps(out / "stages/stage-1/branch-0")
+    assert steps == first["env_steps"] + result["env_steps"]
 
 
 def test_a_damaged_checkpoint_is_refused_by_name(

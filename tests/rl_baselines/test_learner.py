@@ -152,6 +152,90 @@ def test_a_learner_saved_mid_session_continues_its_session(tmp_path: Path) -> No
     assert _load(folder).train(OTHER, 100).env_steps == 100
 
 
+def test_a_session_on_seconds_alone_ends_when_they_are_spent(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    learner = _learner()
+    monkeypatch.setattr(learner_module, "OPTIMAL", 2.0)  # never optimal: only the clock stops it
+    states: list[dict] = []
+    outcome = learner.train(
+        TRIVIAL, None, budget_seconds=1.0, checkpoint=lambda: states.append(dict(learner.session))
+    )
+    assert not outcome.converged and outcome.env_steps > 0
+    assert 1.0 <= outcome.seconds < 31  # stopped at a step once a second was spent
+    assert learner.model.num_timesteps == outcome.env_steps and learner.session is None
+    assert states and all(s["budget"] is None and s["budget_seconds"] == 1.0 for s in states)
+
+
+def test_with_both_budgets_a_session_ends_at_the_first() -> None:
+    learner = _learner()
+    assert learner.train(TRIVIAL, 60, budget_seconds=600.0).env_steps == 60
+    before = _weights(learner)
+    spent = learner.train(TRIVIAL, 60, budget_seconds=0.0)  # no time: not even one rollout
+    assert spent.env_steps == 0 and _same(before, _weights(learner))
+
+
+@pytest.mark.parametrize(
+    ("steps", "seconds", "words"),
+    [
+        (None, None, "needs budget_steps or budget_seconds"),
+        (None, -1.0, "budget_seconds -1.0"),
+        (-5, None, "budget_steps -5"),
+        (None, "x", "budget_seconds 'x'"),
+    ],
+)
+def test_a_session_without_a_valid_budget_is_refused(steps, seconds, words: str) -> None:
+    with pytest.raises(RLConfigError, match=words):
+        _learner().train(TRIVIAL, steps, budget_seconds=seconds)
+
+
+def test_a_session_on_seconds_saved_mid_way_continues_with_the_same_budgets(
+    tmp_path: Path,
+) -> None:
+    learner = _learner(seed=5)
+    folder = tmp_path / "checkpoint"
+    calls = 0
+
+    def checkpoint() -> None:
+        nonlocal calls
+        calls += 1
+        if calls == 3:  # the start of the third rollout, 40 steps in
+            learner.save(folder)
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        learner.train(TRIVIAL, 100, budget_seconds=60.0, checkpoint=checkpoint)
+    saved = json.loads((folder / "learner.json").read_text())["session"]
+    assert (saved["budget"], saved["budget_seconds"], saved["steps"]) == (100, 60.0, 40)
+    assert saved["seconds"] > 0
+    outcome = _load(folder).train(TRIVIAL, 100, budget_seconds=60.0)
+    # the same session: its steps and seconds go on from the save
+    assert outcome.env_steps == 100 and outcome.seconds >= saved["seconds"]
+    # another seconds budget is another session, from zero
+    other = _load(folder)
+    assert other.train(TRIVIAL, 100, budget_seconds=61.0).env_steps == 100
+    assert other.model.num_timesteps == 140
+
+
+def test_a_session_saved_before_seconds_budgets_continues(tmp_path: Path) -> None:
+    learner = _learner(seed=6)
+    folder = tmp_path / "checkpoint"
+
+    def checkpoint() -> None:
+        if learner.session["steps"] == 40:
+            learner.save(folder)
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        learner.train(TRIVIAL, 100, checkpoint=checkpoint)
+    data = json.loads((folder / "learner.json").read_text())
+    del data["session"]["budget_seconds"]  # as written before seconds budgets existed
+    (folder / "learner.json").write_text(json.dumps(data))
+    loaded = _load(folder)
+    assert loaded.session is not None and loaded.session["budget_seconds"] is None
+    assert loaded.train(TRIVIAL, 100).env_steps == 100 and loaded.model.num_timesteps == 100
+
+
 def test_fitted_rollouts_fit_the_first_allowance() -> None:
     def fitted(**fields) -> dict:
         return fitted_hyperparameters(TrainConfig.from_dict({"regime": "edhucat", **fields}))
@@ -168,6 +252,12 @@ def test_fitted_rollouts_fit_the_first_allowance() -> None:
     mine = {"n_steps": 4096, "learning_rate": 0.01}
     assert fitted(algo="ppo", hyperparameters=mine, **common) == {**mine, "batch_size": 64}
     assert fitted(algo="ppo", hyperparameters={"batch_size": 7}, **common)["batch_size"] == 7
+    # a seconds budget alone has no allowance in steps: SB3's defaults stay
+    seconds = {**common, "budget_steps": None, "budget_seconds": 60}
+    assert fitted(algo="ppo", **seconds) == {"n_steps": 2048, "batch_size": 64}
+    assert fitted(algo="a2c", **seconds) == {"n_steps": 5}
+    both = {**tiny, "budget_seconds": 60}  # with both, the steps allowance still fits it
+    assert fitted(algo="ppo", **both) == {"n_steps": MIN_N_STEPS, "batch_size": 4 * MIN_N_STEPS}
     assert isinstance(TrainConfig(), CurriculumConfig)
 
 
@@ -184,6 +274,9 @@ def test_fitted_rollouts_fit_the_first_allowance() -> None:
         (lambda f: _edit(f, log_name="../x"), "log_name"),
         (lambda f: _edit(f, session={"mazes": ["nope"]}), "session mazes"),
         (lambda f: _edit(f, session=3), "session 3"),
+        (lambda f: _edit_session(f, budget_seconds=-2), "session budget_seconds -2"),
+        (lambda f: _edit_session(f, budget_seconds="soon"), "session budget_seconds 'soon'"),
+        (lambda f: _edit_session(f, budget=None, budget_seconds=None), "session has no budget"),
     ],
 )
 def test_a_damaged_learner_is_refused_naming_the_file(tmp_path: Path, damage, words: str) -> None:
@@ -197,3 +290,17 @@ def test_a_damaged_learner_is_refused_naming_the_file(tmp_path: Path, damage, wo
 def _edit(folder: Path, **changes: object) -> None:
     path = folder / "learner.json"
     path.write_text(json.dumps({**json.loads(path.read_text()), **changes}))
+
+
+def _edit_session(folder: Path, **changes: object) -> None:
+    """Give ``learner.json`` a session (a valid one, but for ``changes``)."""
+    session = {
+        "mazes": TRIVIAL,
+        "budget": 100,
+        "budget_seconds": 5.0,
+        "steps": 0,
+        "seconds": 0.0,
+        "converged": False,
+        "last_eval": None,
+    }
+    _edit(folder, session={**session, **changes})

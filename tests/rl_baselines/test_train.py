@@ -12,8 +12,9 @@ from pathlib import Path
 import pytest
 
 import rl_baselines.train as train_module
+from amaze.errors import UsageError
 from rl_baselines import RLConfigError
-from rl_baselines.cli import main
+from rl_baselines.cli import COMMAND, main
 from rl_baselines.train import TrainConfig, train
 
 SUMMARY_KEYS = {"success_rate", "normalized_reward", "input_recognition", "env_steps", "seconds"}
@@ -36,11 +37,67 @@ def _progress(out: Path) -> list[dict[str, str]]:
         ({"stages": 3}, "stages 3 is for the curriculum regimes"),
         ({"colour": 1}, "'colour'"),
         ({"hyperparameters": {"seed": 3}}, "'seed'"),
+        ({"budget_seconds": 0}, "budget_seconds 0 is not a number > 0"),
+        ({"budget_seconds": -1}, "budget_seconds -1 is not a number > 0"),
+        ({"budget_seconds": "x"}, "budget_seconds 'x' is not a number"),
+        ({"budget_seconds": True}, "budget_seconds True is not a number"),
+        ({"budget_seconds": float("inf")}, "budget_seconds inf is not a finite number"),
+        ({"budget_steps": None}, "budget_steps None and budget_seconds None"),
+        ({"budget_steps": None, "budget_seconds": None}, "needs at least one budget"),
+        ({"budget_steps": 2.5, "budget_seconds": 10}, "budget_steps 2.5"),
     ],
 )
 def test_bad_config_names_the_value(data: dict, bad: str) -> None:
     with pytest.raises(RLConfigError, match=bad):
         TrainConfig.from_dict(data)
+
+
+def test_budgets_of_steps_seconds_or_both() -> None:
+    assert (TrainConfig.from_dict({}).budget_steps, TrainConfig().budget_seconds) == (
+        3_000_000,
+        None,
+    )
+    seconds = TrainConfig.from_dict({"budget_steps": None, "budget_seconds": 90})
+    assert (seconds.budget_steps, seconds.budget_seconds) == (None, 90.0)
+    both = TrainConfig.from_dict({"budget_steps": 500, "budget_seconds": 1.5})
+    assert (both.budget_steps, both.budget_seconds) == (500, 1.5)
+
+
+def test_a_config_written_before_seconds_budgets_loads_unchanged() -> None:
+    old = TrainConfig.from_dict({}).to_dict()  # a checked config, as config.json holds
+    del old["budget_seconds"]
+    old["budget_steps"] = 12_345
+    config = TrainConfig.from_dict(old)
+    assert config.budget_steps == 12_345 and config.budget_seconds is None
+    assert config.to_dict() == {**old, "budget_seconds": None}
+
+
+def test_budget_seconds_alone_on_the_command_line_has_no_step_limit(tmp_path: Path) -> None:
+    parser = COMMAND.parser()
+
+    def config(*argv: str, file: str | None = None) -> TrainConfig:
+        args = parser.parse_args([*argv, "--out", str(tmp_path / "unused")])
+        return TrainConfig.from_dict(TrainConfig.from_file_and_arguments(args, file))
+
+    alone = config("--budget-seconds", "60")
+    assert (alone.budget_steps, alone.budget_seconds) == (None, 60.0)
+    both = config("--budget-seconds", "60", "--budget-steps", "800")
+    assert (both.budget_steps, both.budget_seconds) == (800, 60.0)
+    assert config("--budget-steps", "800").budget_seconds is None
+    # a whole config file that sets budget_steps keeps it: both budgets apply
+    whole = _write(tmp_path / "whole.json", {"budget_steps": 900})
+    assert config("--budget-seconds", "60", file=whole).budget_steps == 900
+    with pytest.raises(UsageError, match="'x'"):
+        config("--budget-seconds", "x")
+
+
+def test_cli_refuses_a_zero_seconds_budget(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["--budget-seconds", "0", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "budget_seconds 0.0" in err and err.count("\n") == 1
+    assert not (tmp_path / "r").exists()
 
 
 def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -181,3 +238,90 @@ def test_unknown_hyperparameter_is_refused_before_the_run_starts(tmp_path: Path)
     with pytest.raises(RLConfigError, match="n_stepz"):
         train(config, tmp_path / "run")
     assert not (tmp_path / "run").exists()
+
+
+#: PPO with 32-step rollouts (128 env steps) and two short epochs: many rollouts a second.
+QUICK_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 2}
+#: Generous: the run stops at a step; only a very slow machine adds seconds after it.
+SLACK = 30
+
+
+def test_a_direct_run_on_seconds_alone_stops_at_its_budget(tmp_path: Path) -> None:
+    out = tmp_path / "ppo"
+    config = {
+        "algo": "ppo",
+        "budget_steps": None,
+        "budget_seconds": 3,
+        "eval_every": 1024,
+        "tensorboard": False,
+        "hyperparameters": QUICK_PPO,
+    }
+    result = train(config, out)
+    summary = result.summary
+    assert summary["budget_seconds"] == 3.0 and summary["budget_steps"] is None
+    assert not summary["converged"] and summary["env_steps"] > 0
+    state = json.loads((out / "checkpoints" / "state.json").read_text())
+    # stopped by the clock: the training seconds reached the budget, and not long after
+    assert 3 <= state["seconds"] < 3 + SLACK
+    assert 3 <= summary["seconds"] < 3 + SLACK
+    rows = _progress(out)
+    steps = [int(r["steps"]) for r in rows]
+    assert steps == sorted(set(steps)) and steps[0] == 0
+    # the final agent is evaluated: progress.csv and the checkpoint are at its steps
+    assert steps[-1] == summary["env_steps"] == state["num_timesteps"]
+
+
+def test_amaze_train_budget_seconds_alone(tmp_path: Path) -> None:
+    out = tmp_path / "a2c"
+    argv = ["--algo", "a2c", "--budget-seconds", "2", "--eval-every", "2000"]
+    assert main([*argv, "--no-tensorboard", "--progress", "--out", str(out)]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["budget_steps"] is None and config["budget_seconds"] == 2.0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["env_steps"] > 0 and 2 <= summary["seconds"] < 2 + SLACK
+
+
+@pytest.mark.parametrize(
+    ("budgets", "by_steps"),
+    [({"budget_steps": 200, "budget_seconds": 600}, True), ({"budget_seconds": 2}, False)],
+)
+def test_with_both_budgets_the_first_reached_ends_the_run(
+    tmp_path: Path, budgets: dict, by_steps: bool
+) -> None:
+    # A2C's rollouts are 5 steps x 4 environments; 10 ** 9 steps is never reached here.
+    config = {"algo": "a2c", "budget_steps": 10**9, "eval_every": 2000, "tensorboard": False}
+    summary = train({**config, **budgets}, tmp_path / "run").summary
+    if by_steps:
+        assert summary["env_steps"] == 200 and summary["seconds"] < 600
+    else:
+        assert 0 < summary["env_steps"] < 10**9 and 2 <= summary["seconds"] < 2 + SLACK
+
+
+def test_a_resumed_seconds_run_counts_the_seconds_already_spent(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    config = {"algo": "a2c", "budget_steps": None, "budget_seconds": 1.5, "eval_every": 1000}
+    train({**config, "tensorboard": False}, out)
+    before = json.loads((out / "summary.json").read_text())
+    # as if killed after its last checkpoint, in a run of 3 seconds
+    (out / "summary.json").unlink()
+    data = json.loads((out / "config.json").read_text())
+    (out / "config.json").write_text(json.dumps({**data, "budget_seconds": 3}))
+    summary = train_module.resume(out).summary
+    assert summary["env_steps"] > before["env_steps"] and 3 <= summary["seconds"] < 3 + SLACK
+    seconds = [float(r["seconds"]) for r in _progress(out)]
+    # the resumed part goes on from the checkpoint's seconds, not from zero
+    assert seconds == sorted(seconds) and seconds[-1] >= 3
+
+
+def test_a_run_folder_of_a_config_without_budget_seconds_resumes_as_before(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / "run"
+    train({"algo": "a2c", "budget_steps": 40, "eval_every": 20, "tensorboard": False}, out)
+    (out / "summary.json").unlink()
+    data = json.loads((out / "config.json").read_text())
+    del data["budget_seconds"]  # as written before seconds budgets existed
+    (out / "config.json").write_text(json.dumps(data))
+    summary = train_module.resume(out).summary
+    assert summary["env_steps"] == 40 and summary["budget_seconds"] is None
+    assert [int(r["steps"]) for r in _progress(out)] == [0, 20, 40]

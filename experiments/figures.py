@@ -120,7 +120,7 @@ def save_figures(
     out = folder.out / "figures"
     out.mkdir(parents=True, exist_ok=True)
     treatments = [t for t in study.treatments if any(r["treatment"] == t for r in rows)]
-    budgets = len({r.budget for r in study.runs})
+    budgets = len({r.condition for r in study.runs})
     written: list[tuple[str, Path]] = []
     if not treatments:
         return written

@@ -3,7 +3,7 @@
 ``amaze-experiment report DIR`` (:func:`write_report`) writes, in ``DIR``:
 
 * ``runs.csv``: one row per finished run (study, treatment, trainer,
-  algorithm, budget, robot, seed, env steps, seconds, wall-clock and
+  algorithm, condition, robot, seed, env steps, seconds, wall-clock and
   core-seconds, suite success, R̄, input recognition and its rate per input
   class, the run's folder);
 * ``tests.csv``: every pairwise comparison (:mod:`experiments.stats`);
@@ -17,7 +17,7 @@
   figures and the compute each treatment took.
 
 Pairs are compared when they differ in one factor (trainer or algorithm)
-under the same budget: the comparisons a reader makes, and a family small
+under the same condition: the comparisons a reader makes, and a family small
 enough for the correction to leave some power.
 """
 
@@ -58,6 +58,7 @@ RUN_COLUMNS = (
     "trainer",
     "algorithm",
     "budget",
+    "condition",
     "robot",
     "seed",
     "env_steps",
@@ -98,6 +99,7 @@ def collect_rows(folder: StudyFolder, study: Study) -> list[dict[str, Any]]:
                 "trainer": run.trainer,
                 "algorithm": run.algorithm,
                 "budget": run.budget,
+                "condition": run.condition,
                 "robot": run.config.get("robot"),
                 "seed": run.seed,
                 "env_steps": int(summary["env_steps"]),
@@ -126,18 +128,20 @@ def _csv(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> bytes:
     return buffer.getvalue().encode("utf-8")
 
 
-def _cells(study: Study, budget: str) -> list[tuple[str, str]]:
-    """The (trainer, algorithm) cells of one budget, in the study's order."""
-    return list(dict.fromkeys((r.trainer, r.algorithm) for r in study.runs if r.budget == budget))
+def _cells(study: Study, condition: str) -> list[tuple[str, str]]:
+    """The (trainer, algorithm) cells of one condition, in the study's order."""
+    return list(
+        dict.fromkeys((r.trainer, r.algorithm) for r in study.runs if r.condition == condition)
+    )
 
 
 def _values(
-    rows: Sequence[dict[str, Any]], trainer: str, algorithm: str, budget: str, metric: str
+    rows: Sequence[dict[str, Any]], trainer: str, algorithm: str, condition: str, metric: str
 ) -> list[float]:
     return [
         row[metric]
         for row in rows
-        if (row["trainer"], row["algorithm"], row["budget"]) == (trainer, algorithm, budget)
+        if (row["trainer"], row["algorithm"], row["condition"]) == (trainer, algorithm, condition)
         and not math.isnan(row[metric])
     ]
 
@@ -169,35 +173,35 @@ def _fmt(value: float, mark: str = "") -> str:
     return f"**{text}**" if mark == "bold" else f"*{text}*" if mark == "italic" else text
 
 
-def table3(rows: Sequence[dict[str, Any]], study: Study, budget: str) -> tuple[str, dict]:
-    """The paper's Table 3 for one budget, as Markdown, and its numbers.
+def table3(rows: Sequence[dict[str, Any]], study: Study, condition: str) -> tuple[str, dict]:
+    """The paper's Table 3 for one condition, as Markdown, and its numbers.
 
     Rows: maximum and median of each metric over the seeds; columns:
     trainer x algorithm. The best value of a row is bold, the second italic
     (higher is better for every metric).
     """
-    cells = _cells(study, budget)
+    cells = _cells(study, condition)
     header = "| | | " + " | ".join(f"{t}<br>{a.upper()}" for t, a in cells) + " |"
     lines = [header, "|---|---|" + "---|" * len(cells)]
     numbers: dict[str, dict[str, list[float]]] = {}
     for statistic, title in (("max", "Maximum"), ("median", "Median")):
         numbers[statistic] = {}
         for metric, label in METRICS.items():
-            row = [_statistic(_values(rows, t, a, budget, metric), statistic) for t, a in cells]
+            row = [_statistic(_values(rows, t, a, condition, metric), statistic) for t, a in cells]
             numbers[statistic][metric] = row
             marks = _ranked(row)
             values = " | ".join(_fmt(v, m) for v, m in zip(row, marks, strict=True))
             lines.append(f"| {title} | {label} | {values} |")
-    counts = [len(_values(rows, t, a, budget, "success_rate")) for t, a in cells]
+    counts = [len(_values(rows, t, a, condition, "success_rate")) for t, a in cells]
     lines.append("| | runs | " + " | ".join(str(c) for c in counts) + " |")
     return "\n".join(lines), numbers
 
 
-def paper_comparison(rows: Sequence[dict[str, Any]], study: Study, budget: str) -> str | None:
+def paper_comparison(rows: Sequence[dict[str, Any]], study: Study, condition: str) -> str | None:
     """This study's Table 3 cells beside the paper's (where the paper has the cell)."""
     cells = [
         (t, a)
-        for t, a in _cells(study, budget)
+        for t, a in _cells(study, condition)
         if (paper_trainer(t), a) in PAPER_TABLE3["max"]["success_rate"]
     ]
     if not cells:
@@ -208,34 +212,34 @@ def paper_comparison(rows: Sequence[dict[str, Any]], study: Study, budget: str) 
         for metric, label in METRICS.items():
             values = []
             for trainer, algorithm in cells:
-                ours = _statistic(_values(rows, trainer, algorithm, budget, metric), statistic)
+                ours = _statistic(_values(rows, trainer, algorithm, condition, metric), statistic)
                 theirs = PAPER_TABLE3[statistic][metric][(paper_trainer(trainer), algorithm)]
                 values.append(f"{_fmt(ours)} / {theirs:g}")
             lines.append(f"| {title} | {label} | " + " | ".join(values) + " |")
     return "\n".join(lines)
 
 
-def pairs_of(study: Study, budget: str) -> list[tuple[str, str]]:
-    """The treatments of one budget that differ in exactly one factor (trainer or algorithm)."""
-    cells = _cells(study, budget)
+def pairs_of(study: Study, condition: str) -> list[tuple[str, str]]:
+    """The treatments of one condition that differ in exactly one factor (trainer or algorithm)."""
+    cells = _cells(study, condition)
     pairs = []
     for i, (t1, a1) in enumerate(cells):
         for t2, a2 in cells[i + 1 :]:
             if (t1 == t2) != (a1 == a2):
-                pairs.append((f"{t1}/{a1}/{budget}", f"{t2}/{a2}/{budget}"))
+                pairs.append((f"{t1}/{a1}/{condition}", f"{t2}/{a2}/{condition}"))
     return pairs
 
 
 def comparisons(rows: Sequence[dict[str, Any]], study: Study) -> list[Comparison]:
     """The pairwise tests of every metric; each metric is one family for the correction."""
-    budgets = list(dict.fromkeys(r.budget for r in study.runs))
+    conditions = list(dict.fromkeys(r.condition for r in study.runs))
     found: list[Comparison] = []
     for metric in METRICS:
         groups = {
             treatment: [row[metric] for row in rows if row["treatment"] == treatment]
             for treatment in study.treatments
         }
-        pairs = [pair for budget in budgets for pair in pairs_of(study, budget)]
+        pairs = [pair for condition in conditions for pair in pairs_of(study, condition)]
         found += compare_pairs(metric, groups, pairs)
     return found
 
@@ -328,7 +332,7 @@ def write_report(out: str | Path) -> Path:
     found = comparisons(rows, study)
     write_bytes(folder.out / "tests.csv", _csv(_test_rows(found), TEST_COLUMNS))
     figures = save_figures(folder, study, rows)
-    budgets = list(dict.fromkeys(r.budget for r in study.runs))
+    conditions = list(dict.fromkeys(r.condition for r in study.runs))
     parts = [
         f"# Study `{study.name}`: report",
         "",
@@ -340,18 +344,19 @@ def write_report(out: str | Path) -> Path:
         " rotations) and by the input-recognition test.",
         "",
     ]
-    for budget in budgets:
-        spec = next(r for r in study.runs if r.budget == budget)
+    for condition in conditions:
+        spec = next(r for r in study.runs if r.condition == condition)
         parts += [
-            f"## Table 3, budget `{budget}` ({_budget_words(spec)})",
+            f"## Table 3, `{condition}` ({_budget_words(spec)})",
             "",
             "Maximum and median over the seeds of each treatment; best of a row in **bold**,"
             " second in *italics* (higher is better everywhere).",
             "",
-            table3(rows, study, budget)[0],
+            table3(rows, study, condition)[0],
             "",
         ]
-        paper = paper_comparison(rows, study, budget)
+        # the paper's agents were DD robots (discrete inputs and moves)
+        paper = paper_comparison(rows, study, condition) if spec.config["robot"] == "DD" else None
         if paper:
             parts += [
                 f"### Beside the paper (this study / {PAPER_CITATION})",
@@ -365,7 +370,7 @@ def write_report(out: str | Path) -> Path:
     parts += [
         "## Pairwise differences",
         "",
-        "Treatments under the same budget that differ in one factor, compared per metric with"
+        "Treatments under the same condition that differ in one factor, compared per metric with"
         " an independent t-test (as the paper) and a Mann-Whitney U test, each corrected with"
         " Benjamini-Hochberg over the metric's pairs; effect sizes Cohen's d and the"
         " rank-biserial correlation (first vs second). Stars: * p < 0.05, ** < 1e-2,"
@@ -399,4 +404,5 @@ def _budget_words(run: PlannedRun) -> str:
         words.append(f"{run.budget_steps:,} env steps")
     if run.budget_seconds:
         words.append(f"{run.budget_seconds:g} s")
-    return " or ".join(words) if words else "no budget"
+    text = " or ".join(words) if words else "no budget"
+    return text if run.robot is None else f"{text}, robot {run.robot}"

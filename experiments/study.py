@@ -7,7 +7,7 @@ same form is a study::
     name = "mine"
     description = "PPO against CMA-ES on the paper's three trainers"
     seeds = 5                         # seeds 0..4; or a list: seeds = [3, 7]
-    robot = "DD"
+    robot = "DD"                      # or several: robot = ["DD", "H15"]
     trainers = ["direct", "interpolation", "edhucat-careful"]
     algorithms = ["ppo", "cmaes"]
 
@@ -27,8 +27,9 @@ same form is a study::
     trainer = "coevolution"
     algorithm = "neat"
 
-A *treatment* is a (trainer, algorithm, budget) cell; each runs once per
-seed. Every run's config is built and checked by its trainer's config class
+A *treatment* is a (trainer, algorithm, condition) cell, where the
+condition is the budget (and the robot, when the study has several); each
+treatment runs once per seed. Every run's config is built and checked by its trainer's config class
 when the study is read, so a bad study fails before anything runs, with a
 message naming the file and the run.
 """
@@ -78,16 +79,23 @@ class PlannedRun:
     budget: str
     seed: int
     config: dict[str, Any] = field(compare=False)
+    #: The robot, when the study has several (else ``None``: the study's one robot).
+    robot: str | None = None
+
+    @property
+    def condition(self) -> str:
+        """The budget's name, with the robot when the study has several (``steps-H15``)."""
+        return self.budget if self.robot is None else f"{self.budget}-{self.robot}"
 
     @property
     def treatment(self) -> str:
-        """``trainer/algorithm/budget``: the cell of the grid."""
-        return f"{self.trainer}/{self.algorithm}/{self.budget}"
+        """``trainer/algorithm/condition``: the cell of the grid."""
+        return f"{self.trainer}/{self.algorithm}/{self.condition}"
 
     @property
     def id(self) -> str:
         """A name unique in the study, also the run's folder under ``runs/``."""
-        return f"{self.trainer}_{self.algorithm}_{self.budget}_seed-{self.seed}"
+        return f"{self.trainer}_{self.algorithm}_{self.condition}_seed-{self.seed}"
 
     @property
     def budget_steps(self) -> int | None:
@@ -163,24 +171,29 @@ def parse_study(text: str, source: str = "study") -> Study:
     if not isinstance(description, str):
         raise bad(f"description {description!r} is not a string")
     seeds = _seeds(data.get("seeds", 1), bad)
-    robot = data.get("robot", "DD")
-    if not isinstance(robot, str):
-        raise bad(f"robot {robot!r} is not a string")
+    robots = data.get("robot", "DD")
+    robots = [robots] if isinstance(robots, str) else robots
+    if not isinstance(robots, list) or not robots or not all(isinstance(r, str) for r in robots):
+        raise bad(f"robot {data.get('robot')!r} is not a robot or a list of robots")
+    if len(set(robots)) != len(robots):
+        raise bad(f"robot {robots} names one twice")
     trainers = _names(data.get("trainers"), "trainers", TRAINERS, bad)
     algorithms = _names(data.get("algorithms"), "algorithms", ALGORITHMS, bad)
     budgets = _budgets(data.get("budgets"), bad)
     options = _options(data.get("options", {}), trainers, algorithms, bad)
     excluded = _excluded(data.get("exclude", []), bad)
     runs = []
-    for budget_name, budget in budgets.items():
-        for trainer in trainers:
-            for algorithm in algorithms:
-                if (trainer, algorithm) in excluded:
-                    continue
-                for seed in seeds:
-                    config = _config(trainer, algorithm, budget, robot, seed, options)
-                    run = PlannedRun(trainer, algorithm, budget_name, seed, config)
-                    runs.append(_checked(run, bad))
+    for robot in robots:
+        shown = robot if len(robots) > 1 else None
+        for budget_name, budget in budgets.items():
+            for trainer in trainers:
+                for algorithm in algorithms:
+                    if (trainer, algorithm) in excluded:
+                        continue
+                    for seed in seeds:
+                        config = _config(trainer, algorithm, budget, robot, seed, options)
+                        run = PlannedRun(trainer, algorithm, budget_name, seed, config, shown)
+                        runs.append(_checked(run, bad))
     if not runs:
         raise bad("the grid holds no run (every cell is excluded)")
     if len(runs) > MAX_RUNS:
@@ -297,4 +310,6 @@ def _checked(run: PlannedRun, bad: Any) -> PlannedRun:
             algorithm_class(run.algorithm).config_class.from_dict(checked.algorithm)
     except (ValueError, TypeError) as problem:
         raise bad(f"run {run.id}: {problem}") from None
-    return PlannedRun(run.trainer, run.algorithm, run.budget, run.seed, checked.to_dict())
+    return PlannedRun(
+        run.trainer, run.algorithm, run.budget, run.seed, checked.to_dict(), run.robot
+    )

@@ -51,12 +51,26 @@ algorithm = "ppo"
     assert "stages" not in cma or cma["stages"] is None  # the direct regime has none
 
 
+def test_several_robots_make_conditions_of_their_own() -> None:
+    study = parse_study(_with(BASE, 'robot = ["DD", "H15"]\n'))
+    assert len(study.runs) == 2 * 4 * 2
+    run = next(r for r in study.runs if r.id == "direct_ppo_steps-H15_seed-0")
+    assert (run.robot, run.condition) == ("H15", "steps-H15")
+    assert run.config["robot"] == "CD15"  # the hybrid robot, canonical
+    assert run.treatment == "direct/ppo/steps-H15"
+    single = parse_study(BASE).runs[0]
+    assert (single.robot, single.condition, single.config["robot"]) == (None, "steps", "DD")
+
+
 @pytest.mark.parametrize(
     ("change", "named"),
     [
         ("name = 3\n", "name 3"),
         ("colour = 'red'\n", "colour"),
         ("seeds = 0\n", "seeds 0"),
+        ("robot = ['DD', 'DD']\n", "twice"),
+        ("robot = 3\n", "robot 3"),
+        ("robot = 'XY'\n", "XY"),
         ("seeds = [1, 1]\n", "repeats"),
         ("trainers = ['sideways']\n", "'sideways'"),
         ("algorithms = ['sarsa']\n", "'sarsa'"),

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from amaze.runs.folder import write_json
+from experiments.figures import learning_curve
 from experiments.report import collect_rows, table3, write_report
 from experiments.runner import STATE_FILE, STUDY_FILE, StudyFolder
 from experiments.study import parse_study
@@ -145,3 +146,44 @@ def test_the_report_shows_the_table_the_paper_the_figures_and_the_compute(
         assert (study_folder / "figures" / f"{figure}.png").stat().st_size > 1000
     # median steps and training seconds; wall-clock 20 + 21 + 22 s on 2 threads each
     assert "| direct/a2c/steps | 3 | 100,001 | 20.0 | 63 | 126 |" in report
+
+
+@pytest.mark.parametrize(
+    ("header", "rows", "config", "expected"),
+    [
+        (  # the direct RL run: its evaluations
+            "steps,seconds,eval_success,eval_rbar",
+            ["0,1.0,0.0,-5", "100,2.0,0.5,-1"],
+            {},
+            {"steps": [0, 100], "seconds": [1, 2], "success": [0, 0.5], "rbar": [-5, -1]},
+        ),
+        (  # a curriculum: one row per branch, seconds per branch
+            "branches,stage,branch,steps,seconds,success,rbar,converged,maze",
+            ["1,0,0,50,1.5,1.0,1.0,True,M1_5x5_U", "2,1,0,80,2.5,0.25,-2,False,M2_6x6_C1"],
+            {},
+            {"steps": [50, 80], "seconds": [1.5, 4.0], "success": [1, 0.25], "rbar": [1, -2]},
+        ),
+        (  # direct evolution: the champion's fitness, R̄ when that is the measure
+            "generation,steps,seconds,best,mean,champion,eval_seconds",
+            ["1,10,0.1,-3,-4,-3,0.05", "2,20,0.2,-1,-2,-1,0.05"],
+            {"fitness": "paper_reward"},
+            {"steps": [10, 20], "seconds": [0.1, 0.2], "rbar": [-3, -1]},
+        ),
+        (  # direct evolution on another measure: no curve of R̄ or success
+            "generation,steps,seconds,best,mean,champion,eval_seconds",
+            ["1,10,0.1,0.5,0.2,0.5,0.05"],
+            {"fitness": "success"},
+            {"steps": [10], "seconds": [0.1]},
+        ),
+    ],
+)
+def test_learning_curves_read_what_each_trainer_logs(
+    tmp_path: Path, header: str, rows: list[str], config: dict, expected: dict
+) -> None:
+    (tmp_path / "progress.csv").write_text("\n".join([header, *rows]) + "\n")
+    write_json(tmp_path / "config.json", config)
+    curve = learning_curve(tmp_path)
+    assert set(curve) == set(expected)
+    for name, values in expected.items():
+        assert curve[name] == pytest.approx(values)
+    assert learning_curve(tmp_path / "nowhere") is None

@@ -18,6 +18,7 @@ import csv
 import io
 import json
 import math
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -26,6 +27,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from amaze.maze.render import load_font, save_picture
+from amaze.runs.folder import write_bytes
 from experiments.runner import StudyFolder
 from experiments.study import Study
 
@@ -95,12 +97,9 @@ def _median_curve(curves: Sequence[dict[str, np.ndarray]], x_name: str, y_name: 
         values = np.where(index >= 0, y[np.clip(index, 0, None)], np.nan)
         values = np.where(grid <= x[-1], values, y[-1])  # a finished run holds its last value
         stacked.append(values)
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            return grid, np.nanmedian(np.vstack(stacked), axis=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a grid point no seed has reached
+        return grid, np.nanmedian(np.vstack(stacked), axis=0)
 
 
 def _label(treatment: str, budgets: int) -> str:
@@ -203,10 +202,9 @@ def save_figures(
 
 
 def _save(figure: Any, path: Path) -> Path:
+    """``figure`` as a PNG, written atomically."""
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=110)
-    from amaze.runs.folder import write_bytes
-
     write_bytes(path, buffer.getvalue())
     return path
 

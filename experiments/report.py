@@ -173,27 +173,58 @@ def _fmt(value: float, mark: str = "") -> str:
     return f"**{text}**" if mark == "bold" else f"*{text}*" if mark == "italic" else text
 
 
+#: Most trainer x algorithm cells shown as the paper's columns; more are shown as rows.
+WIDE_CELLS = 8
+SHORT_METRICS = {"normalized_reward": "R̄", "success_rate": "success", "input_recognition": "IR"}
+
+
 def table3(rows: Sequence[dict[str, Any]], study: Study, condition: str) -> tuple[str, dict]:
     """The paper's Table 3 for one condition, as Markdown, and its numbers.
 
-    Rows: maximum and median of each metric over the seeds; columns:
-    trainer x algorithm. The best value of a row is bold, the second italic
-    (higher is better for every metric).
+    The maximum and median of each metric over the seeds of each trainer x
+    algorithm cell; the best value of a statistic is bold, the second italic
+    (higher is better for every metric). Up to :data:`WIDE_CELLS` cells are
+    columns, as in the paper; more are rows, which read better.
+    ``numbers[statistic][metric]`` lists the values in the cells' order.
     """
     cells = _cells(study, condition)
-    header = "| | | " + " | ".join(f"{t}<br>{a.upper()}" for t, a in cells) + " |"
-    lines = [header, "|---|---|" + "---|" * len(cells)]
     numbers: dict[str, dict[str, list[float]]] = {}
-    for statistic, title in (("max", "Maximum"), ("median", "Median")):
-        numbers[statistic] = {}
-        for metric, label in METRICS.items():
-            row = [_statistic(_values(rows, t, a, condition, metric), statistic) for t, a in cells]
-            numbers[statistic][metric] = row
-            marks = _ranked(row)
-            values = " | ".join(_fmt(v, m) for v, m in zip(row, marks, strict=True))
-            lines.append(f"| {title} | {label} | {values} |")
+    marks: dict[str, dict[str, list[str]]] = {}
+    for statistic in ("max", "median"):
+        numbers[statistic], marks[statistic] = {}, {}
+        for metric in METRICS:
+            values = [
+                _statistic(_values(rows, t, a, condition, metric), statistic) for t, a in cells
+            ]
+            numbers[statistic][metric] = values
+            marks[statistic][metric] = _ranked(values)
     counts = [len(_values(rows, t, a, condition, "success_rate")) for t, a in cells]
-    lines.append("| | runs | " + " | ".join(str(c) for c in counts) + " |")
+    titles = {"max": "Maximum", "median": "Median"}
+    if len(cells) <= WIDE_CELLS:
+        lines = [
+            "| | | " + " | ".join(f"{t}<br>{a.upper()}" for t, a in cells) + " |",
+            "|---|---|" + "---|" * len(cells),
+        ]
+        for statistic, title in titles.items():
+            for metric, label in METRICS.items():
+                shown = zip(numbers[statistic][metric], marks[statistic][metric], strict=True)
+                lines.append(
+                    f"| {title} | {label} | " + " | ".join(_fmt(v, m) for v, m in shown) + " |"
+                )
+        lines.append("| | runs | " + " | ".join(str(c) for c in counts) + " |")
+        return "\n".join(lines), numbers
+    columns = [(s, m) for s in titles for m in METRICS]
+    lines = [
+        "| trainer | algorithm | "
+        + " | ".join(f"{titles[s].lower()} {SHORT_METRICS[m]}" for s, m in columns)
+        + " | runs |",
+        "|---|---|" + "---|" * (len(columns) + 1),
+    ]
+    for index, (trainer, algorithm) in enumerate(cells):
+        values = [_fmt(numbers[s][m][index], marks[s][m][index]) for s, m in columns]
+        lines.append(
+            f"| {trainer} | {algorithm.upper()} | " + " | ".join(values) + f" | {counts[index]} |"
+        )
     return "\n".join(lines), numbers
 
 
@@ -349,8 +380,8 @@ def write_report(out: str | Path) -> Path:
         parts += [
             f"## Table 3, `{condition}` ({_budget_words(spec)})",
             "",
-            "Maximum and median over the seeds of each treatment; best of a row in **bold**,"
-            " second in *italics* (higher is better everywhere).",
+            "Maximum and median over the seeds of each treatment; the best value of each statistic"
+            " in **bold**, the second in *italics* (higher is better everywhere).",
             "",
             table3(rows, study, condition)[0],
             "",

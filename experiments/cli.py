@@ -8,13 +8,15 @@
     amaze-experiment report studies/smoke      # report.md, runs.csv, tests.csv, figures/
     amaze-experiment list                      # the shipped studies
 
-``run`` may be stopped (Ctrl-C) and started again at any time: finished runs
-are kept, killed ones resume (:mod:`experiments.runner`). Bad input prints one
+``run`` may be stopped (Ctrl-C, or ``kill`` of its process) and started
+again at any time: finished runs are kept, killed ones resume
+(:mod:`experiments.runner`). Bad input prints one
 line ``error: ...`` and exits with status 2.
 """
 
 from __future__ import annotations
 
+import signal
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -67,9 +69,15 @@ def _run(argv: Sequence[str]) -> int:
         return 0
     study = load_study(args.study)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
+    # `kill PID` stops the study as Ctrl-C does (a background job ignores Ctrl-C's SIGINT)
+    signal.signal(signal.SIGTERM, _interrupt)
     status = run_study(study, args.out, workers=args.workers, progress_bar=progress)
     print(format_status(*study_status(args.out)))
     return status
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 def main(argv: Sequence[str] | None = None) -> int:

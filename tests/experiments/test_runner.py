@@ -57,7 +57,7 @@ def test_a_killed_study_resumes_without_redoing_finished_runs(tmp_path: Path) ->
     wait_until(lambda: (folder.run_folder(second) / "progress.csv").is_file())
     _, statuses = study_status(out)
     assert [s.state for s in statuses] == ["done", "running", "pending"]
-    runner.send_signal(signal.SIGINT)
+    runner.send_signal(signal.SIGTERM)  # as `kill` does; Ctrl-C is handled alike
     runner.communicate(timeout=60)
     finished_at = (folder.run_folder(first) / "summary.json").stat().st_mtime_ns
     _, statuses = study_status(out)

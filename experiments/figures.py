@@ -35,6 +35,7 @@ __all__ = ["learning_curve", "save_figures"]
 
 #: Points of a learning curve's common grid.
 GRID = 60
+INPUT_KINDS = ("empty", "lure", "clue", "trap")
 ALGORITHM_COLORS = {"a2c": "#d95f02", "ppo": "#1b9e77", "cmaes": "#7570b3", "neat": "#e7298a"}
 
 
@@ -102,11 +103,6 @@ def _median_curve(curves: Sequence[dict[str, np.ndarray]], x_name: str, y_name: 
         return grid, np.nanmedian(np.vstack(stacked), axis=0)
 
 
-def _label(treatment: str, budgets: int) -> str:
-    trainer, algorithm, budget = treatment.split("/")
-    return f"{trainer}\n{algorithm.upper()}" + (f"\n{budget}" if budgets > 1 else "")
-
-
 def save_figures(
     folder: StudyFolder, study: Study, rows: Sequence[dict[str, Any]]
 ) -> list[tuple[str, Path]]:
@@ -119,40 +115,61 @@ def save_figures(
     out = folder.out / "figures"
     out.mkdir(parents=True, exist_ok=True)
     treatments = [t for t in study.treatments if any(r["treatment"] == t for r in rows)]
-    budgets = len({r.condition for r in study.runs})
     written: list[tuple[str, Path]] = []
     if not treatments:
         return written
-    labels = [_label(t, budgets) for t in treatments]
-    colors = [ALGORITHM_COLORS.get(t.split("/")[1], "#666666") for t in treatments]
-    width = max(6.0, 0.9 * len(treatments) + 2)
+    conditions = list(dict.fromkeys(t.split("/")[2] for t in treatments))
+    trainers = list(dict.fromkeys(t.split("/")[0] for t in treatments))
     rng = np.random.default_rng(0)  # jitter of the points only
 
-    def boxes(ax, metric: str, title: str) -> None:
+    def boxes(ax: Any, condition: str, metric: str, title: str) -> None:
+        """One box per treatment of ``condition``, its runs as points coloured by algorithm."""
+        mine = [t for t in treatments if t.split("/")[2] == condition]
         data = [
             [r[metric] for r in rows if r["treatment"] == t and not math.isnan(r[metric])]
-            for t in treatments
+            for t in mine
         ]
-        positions = np.arange(len(treatments))
+        positions = np.arange(len(mine))
         ax.boxplot(data, positions=positions, widths=0.55, showfliers=False)
-        for x, values, color in zip(positions, data, colors, strict=True):
-            ax.scatter(
-                x + rng.uniform(-0.15, 0.15, len(values)), values, s=14, color=color, zorder=3
-            )
-        ax.set_xticks(positions, labels, fontsize=7)
-        ax.set_title(title, fontsize=10)
+        for x, values, treatment in zip(positions, data, mine, strict=True):
+            color = ALGORITHM_COLORS.get(treatment.split("/")[1], "#666666")
+            jitter = rng.uniform(-0.15, 0.15, len(values))
+            ax.scatter(x + jitter, values, s=14, color=color, zorder=3)
+        names = [f"{t.split('/')[0]} {t.split('/')[1].upper()}" for t in mine]
+        ax.set_xticks(positions, names, fontsize=7, rotation=50, ha="right")
+        ax.set_title(title if len(conditions) == 1 else f"{title}, {condition}", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
 
-    figure, axes = plt.subplots(1, 2, figsize=(2 * width, 4.2))
-    boxes(axes[0], "normalized_reward", "Normalized reward R̄ (evaluation suite)")
-    boxes(axes[1], "success_rate", "Success rate (evaluation suite)")
-    written.append(("R̄ and success per treatment", _save(figure, out / "distributions.png")))
+    def box_grid(metrics: Sequence[tuple[str, str]], path: Path, title: str) -> None:
+        """A row per metric, a column per condition."""
+        cells = max(sum(t.split("/")[2] == c for t in treatments) for c in conditions)
+        width = max(5.0, 0.45 * cells + 1.5)
+        figure, axes = plt.subplots(
+            len(metrics),
+            len(conditions),
+            figsize=(width * len(conditions), 3.6 * len(metrics)),
+            squeeze=False,
+            sharey="row",
+        )
+        for row, (metric, label) in enumerate(metrics):
+            for col, condition in enumerate(conditions):
+                boxes(axes[row][col], condition, metric, label)
+        figure.tight_layout()
+        written.append((title, _save(figure, path)))
 
-    figure, axes = plt.subplots(1, 4, figsize=(4 * width * 0.6, 4.2), sharey=True)
-    for ax, kind in zip(axes, ("empty", "lure", "clue", "trap"), strict=True):
-        boxes(ax, f"input_{kind}", f"Input recognition: {kind}")
-        ax.tick_params(axis="x", labelsize=6)
-    written.append(("Input recognition per input class", _save(figure, out / "inputs.png")))
+    box_grid(
+        [
+            ("normalized_reward", "Normalized reward R̄ (evaluation suite)"),
+            ("success_rate", "Success rate (evaluation suite)"),
+        ],
+        out / "distributions.png",
+        "R̄ and success per treatment",
+    )
+    box_grid(
+        [(f"input_{kind}", f"Input recognition: {kind}") for kind in INPUT_KINDS],
+        out / "inputs.png",
+        "Input recognition per input class",
+    )
 
     curves: dict[str, list[dict[str, np.ndarray]]] = {t: [] for t in treatments}
     for run in study.runs:
@@ -160,35 +177,41 @@ def save_figures(
             curve = learning_curve(folder.run_folder(run))
             if curve is not None:
                 curves[run.treatment].append(curve)
-    figure, axes = plt.subplots(2, 2, figsize=(13, 8))
+    signals = (("success", "success (as logged)"), ("rbar", "R̄ (as logged)"))
+    figure, axes = plt.subplots(
+        len(signals) * len(conditions), 2, figsize=(13, 3.6 * len(signals) * len(conditions))
+    )
+    axes = np.atleast_2d(axes)
     styles = ["-", "--", ":", "-."]
-    for treatment, color in zip(treatments, colors, strict=True):
-        trainer_index = list(dict.fromkeys(t.split("/")[0] for t in treatments)).index(
-            treatment.split("/")[0]
-        )
-        for row, y_name in enumerate(("success", "rbar")):
+    for treatment in treatments:
+        trainer, algorithm, condition = treatment.split("/")
+        color = ALGORITHM_COLORS.get(algorithm, "#666666")
+        style = styles[trainers.index(trainer) % len(styles)]
+        for index, (y_name, _) in enumerate(signals):
+            row = conditions.index(condition) * len(signals) + index
             for col, x_name in enumerate(("steps", "seconds")):
                 median = _median_curve(curves[treatment], x_name, y_name)
                 if median is not None:
-                    axes[row][col].plot(
-                        *median,
-                        styles[trainer_index % len(styles)],
-                        color=color,
-                        label=treatment,
-                        lw=1.4,
-                    )
-    for row, y_label in enumerate(("success (as logged)", "R̄ (as logged)")):
-        for col, x_label in enumerate(("env steps", "training seconds")):
-            ax = axes[row][col]
-            ax.set_xlabel(x_label)
-            ax.set_ylabel(y_label)
-            ax.grid(alpha=0.3)
-    handles, names = axes[0][0].get_legend_handles_labels()
-    more, more_names = axes[1][0].get_legend_handles_labels()
-    legend = dict(zip(names + more_names, handles + more, strict=True))
-    figure.legend(legend.values(), legend.keys(), loc="lower center", ncol=4, fontsize=7)
+                    label = f"{trainer} {algorithm.upper()}"
+                    axes[row][col].plot(*median, style, color=color, label=label, lw=1.3)
+    for condition_index, condition in enumerate(conditions):
+        for index, (_, y_label) in enumerate(signals):
+            row = condition_index * len(signals) + index
+            for col, x_label in enumerate(("env steps", "training seconds")):
+                ax = axes[row][col]
+                ax.set_xlabel(x_label)
+                ax.set_ylabel(y_label)
+                if len(conditions) > 1:
+                    ax.set_title(condition, fontsize=9)
+                ax.grid(alpha=0.3)
+    legend: dict[str, Any] = {}
+    for ax in axes.flat:
+        handles, names = ax.get_legend_handles_labels()
+        legend.update(zip(names, handles, strict=True))
+    figure.legend(legend.values(), legend.keys(), loc="lower center", ncol=5, fontsize=7)
     figure.suptitle("Learning curves: median over seeds of what each run logged", fontsize=11)
-    figure.tight_layout(rect=(0, 0.08, 1, 0.96))
+    legend_rows = math.ceil(len(legend) / 5)
+    figure.tight_layout(rect=(0, 0.02 + 0.12 * legend_rows / (2 * len(conditions)), 1, 0.97))
     written.append(("Learning curves", _save(figure, out / "curves.png")))
 
     best = _best(rows)

@@ -204,10 +204,13 @@ def _serve(args: argparse.Namespace, run_class: type[Run], config: Any, out: Pat
         server.run(sockets=[sock])
     except KeyboardInterrupt:
         interrupted = True
+    # The server stops only on a signal (Ctrl-C, kill): a session stopped before its end
+    # exits with 130 even where SIGINT was ignored (uvicorn then returns, not raises).
+    phase = session.phase  # before close(), which ends a question left unanswered
+    status = 1 if phase == "failed" else 130 if interrupted or phase != "finished" else 0
     session.close()
-    if session.phase != "finished":
+    if phase != "finished":
         print(f"amaze-curate: stopped; amaze-curate --resume {out} goes on", file=sys.stderr)
-    status = 130 if interrupted else 1 if session.phase == "failed" else 0
     if not session.wait(timeout=2.0):
         # Training is under way in the worker (torch, numba): end the process now, as a
         # kill would. Every file of the run is written atomically, so the run resumes.

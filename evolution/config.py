@@ -164,8 +164,7 @@ class EvolveConfig(CurriculumConfig):
     @classmethod
     def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
         """``--budget-seconds`` alone is a wall-clock budget; ``--population-size`` is an option."""
-        if args.budget_seconds is not None and args.budget_steps is None:
-            data.setdefault("budget_steps", None)
+        data = super().adjust_command_line(data, args)
         if getattr(args, "population_size", None) is not None:
             data["algorithm"] = {
                 **data.get("algorithm", {}),

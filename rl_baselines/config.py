@@ -29,7 +29,6 @@ the machine's speed, so it neither replays nor resumes bit-identically.
 
 from __future__ import annotations
 
-import argparse
 import inspect
 import math
 from dataclasses import dataclass
@@ -121,16 +120,6 @@ class TrainConfig(CurriculumConfig):
                 f"budget_steps {self.budget_steps!r} and budget_seconds"
                 f" {self.budget_seconds!r}: a run needs at least one budget"
             )
-
-    @classmethod
-    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
-        """``--budget-seconds`` without ``--budget-steps`` is a wall-clock budget alone.
-
-        A ``--config`` file that sets ``budget_steps`` keeps it (both budgets apply).
-        """
-        if getattr(args, "budget_seconds", None) is not None and args.budget_steps is None:
-            data.setdefault("budget_steps", None)
-        return data
 
     def _coevolution_batch(self) -> None:
         """One environment per rotation of each batch maze: ``batch`` is ``n_envs / 4``."""

@@ -73,6 +73,7 @@ deterministic trainer (evolution) it reaches the same agents, bit for bit.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import shutil
@@ -295,6 +296,17 @@ class CurriculumConfig(RunConfig):
         if self.replay is not None and not isinstance(self.replay, str):
             raise self.error(f"replay {self.replay!r} is not a run folder")
         return self
+
+    @classmethod
+    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+        """``--budget-seconds`` without ``--budget-steps`` is a wall-clock budget alone.
+
+        (A trainer's default ``budget_steps`` would otherwise limit it too.) A
+        ``--config`` file that sets ``budget_steps`` keeps it: both budgets apply.
+        """
+        if getattr(args, "budget_seconds", None) is not None and args.budget_steps is None:
+            data.setdefault("budget_steps", None)
+        return data
 
     def _check_coevolution(self) -> None:
         """``coevolution`` is a valid maze population config, and only in that regime."""

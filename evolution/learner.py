@@ -53,9 +53,9 @@ from typing import Any
 
 import numpy as np
 
-from amaze.curriculum.learner import TrainingOutcome
+from amaze.curriculum.learner import TrainingOutcome, checked_session_budget
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
-from amaze.validation import check_integer, check_number
+from amaze.validation import check_number
 from evolution import EvolutionConfigError
 from evolution.agent_file import policy_from_agent_arrays, save_agent
 from evolution.algorithms import ALGORITHMS, SearchAlgorithm, algorithm_class, make_algorithm
@@ -177,16 +177,9 @@ class EvolutionLearner:
         mazes = tuple(str(m) for m in mazes)
         if not mazes:
             raise EvolutionConfigError("a training session needs at least one maze")
-        if budget_steps is not None:
-            budget_steps = check_integer(
-                "budget_steps", budget_steps, minimum=0, error=EvolutionConfigError
-            )
-        if budget_seconds is not None:
-            budget_seconds = check_number(
-                "budget_seconds", budget_seconds, minimum=0, error=EvolutionConfigError
-            )
-        if budget_steps is None and budget_seconds is None:
-            raise EvolutionConfigError("a training session needs budget_steps or budget_seconds")
+        budget_steps, budget_seconds = checked_session_budget(
+            budget_steps, budget_seconds, EvolutionConfigError
+        )
         backend = self._evaluator(mazes)
         session = self.session
         if (

@@ -40,7 +40,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.agents.robot import as_robot
-from amaze.curriculum.learner import TrainingOutcome
+from amaze.curriculum.learner import TrainingOutcome, checked_session_budget
 from amaze.evaluation.protocol import Evaluator
 from amaze.maze.spec import MazeSpec
 from amaze.runs.config import read_json_object
@@ -188,18 +188,9 @@ class SB3Learner:
         first, or once converged. A saved session continues only when the
         mazes and both budgets are the same.
         """
-        if budget_steps is not None:
-            budget_steps = check_integer(
-                "budget_steps", budget_steps, minimum=0, error=RLConfigError
-            )
-        if budget_seconds is not None:
-            budget_seconds = check_number(
-                "budget_seconds", budget_seconds, minimum=0, error=RLConfigError
-            )
-        if budget_steps is None and budget_seconds is None:
-            raise RLConfigError(
-                "an SB3 learner's session needs budget_steps or budget_seconds (both are None)"
-            )
+        budget_steps, budget_seconds = checked_session_budget(
+            budget_steps, budget_seconds, RLConfigError
+        )
         mazes = [MazeSpec.from_string(str(m)).to_string() for m in mazes]
         session = self.session
         if (

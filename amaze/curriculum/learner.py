@@ -43,7 +43,9 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Learner", "TrainingOutcome", "branch_seed"]
+from amaze.validation import check_integer, check_number
+
+__all__ = ["Learner", "TrainingOutcome", "branch_seed", "checked_session_budget"]
 
 
 @dataclass(frozen=True)
@@ -95,3 +97,20 @@ def branch_seed(run_seed: int, stage: int, branch: int) -> int:
     """
     state = np.random.SeedSequence([int(run_seed), int(stage), int(branch)]).generate_state(1)
     return int(state[0]) & 0x7FFF_FFFF
+
+
+def checked_session_budget(
+    budget_steps: Any, budget_seconds: Any, error: type[ValueError]
+) -> tuple[int | None, float | None]:
+    """A session's budget as the protocol has it: steps and/or seconds, not neither.
+
+    Each is ``None`` (no limit of that kind) or a number >= 0; bad values raise
+    ``error`` naming them.
+    """
+    if budget_steps is not None:
+        budget_steps = check_integer("budget_steps", budget_steps, minimum=0, error=error)
+    if budget_seconds is not None:
+        budget_seconds = check_number("budget_seconds", budget_seconds, minimum=0, error=error)
+    if budget_steps is None and budget_seconds is None:
+        raise error("a training session needs budget_steps or budget_seconds (both are None)")
+    return budget_steps, budget_seconds

@@ -168,10 +168,8 @@ class _Killed(Exception):
     pass
 
 
-def test_resume_after_a_kill_mid_stage_continues_the_branch(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    out = tmp_path / "run"
+def _killing_save(at: int):
+    """``SB3Learner.save`` that raises :class:`_Killed` after stage 1's ``at``-th checkpoint."""
     save = SB3Learner.save
     saves = 0
 
@@ -180,10 +178,18 @@ def test_resume_after_a_kill_mid_stage_continues_the_branch(
         save(learner, folder)
         if Path(folder).name == "checkpoint" and Path(folder).parent.parent.name == "stage-1":
             saves += 1
-            if saves == 3:  # at 80 of the branch's 220 steps
+            if saves == at:
                 raise _Killed
 
-    monkeypatch.setattr(SB3Learner, "save", killing_save)
+    return killing_save
+
+
+def test_resume_after_a_kill_mid_stage_continues_the_branch(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "run"
+    # killed at the 3rd checkpoint of stage 1: at 80 of the branch's 220 steps
+    monkeypatch.setattr(SB3Learner, "save", _killing_save(3))
     with pytest.raises(_Killed):
         main([*A2C, "--seed", "2", "--out", str(out)])
     monkeypatch.undo()
@@ -212,17 +218,8 @@ def test_resume_mid_stage_of_a_seconds_run_continues_the_session(
     argv = [*A2C[: A2C.index("--budget-steps")], "--budget-seconds", "3"]
     argv += ["--eval-every", "40", "--no-progress", "--no-tensorboard", "--seed", "4"]
     save = SB3Learner.save
-    saves = 0
-
-    def killing_save(learner: SB3Learner, folder: Path) -> None:
-        nonlocal saves
-        save(learner, folder)
-        if Path(folder).name == "checkpoint" and Path(folder).parent.parent.name == "stage-1":
-            saves += 1
-            if saves == 2:  # 40 steps into stage 1's first branch
-                raise _Killed
-
-    monkeypatch.setattr(SB3Learner, "save", killing_save)
+    # killed at the 2nd checkpoint of stage 1: 40 steps into its first branch
+    monkeypatch.setattr(SB3Learner, "save", _killing_save(2))
     with pytest.raises(_Killed):
         main([*argv, "--out", str(out)])
     monkeypatch.setattr(SB3Learner, "save", save)

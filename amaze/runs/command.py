@@ -12,20 +12,24 @@
 * :class:`TrainingCommand`: a whole training command built from a trainer's
   :class:`~amaze.runs.lifecycle.Run` class: its config's fields become the
   options (:class:`~amaze.runs.config.RunConfig`), plus ``--config``,
-  ``--out``, ``--resume``, ``--replicates``, ``--workers`` and ``--progress``.
+  ``--out``, ``--resume``, ``--replicates``, ``--workers``, ``--backend``,
+  ``--address`` and ``--progress``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import NoReturn
 
 from amaze.errors import AmazeError, UsageError, one_line
-from amaze.runs.lifecycle import Run
+from amaze.runs.cluster import BACKENDS, check_backend
+from amaze.runs.lifecycle import Run, RunResult
 from amaze.runs.replicates import replicate_command
 
 __all__ = ["EXIT_USAGE", "CommandParser", "TrainingCommand", "run_command"]
@@ -58,13 +62,24 @@ def run_command(body: Callable[[], int | None]) -> int:
 
 @dataclass(frozen=True)
 class TrainingCommand:
-    """A training command (``amaze-evolve``, ``amaze-train``) around a trainer's run class."""
+    """A training command (``amaze-evolve``, ``amaze-train``) around a trainer's run class.
+
+    ``--backend ray`` runs replicates as Ray tasks (:mod:`amaze.runs.replicates`).
+    A trainer that can use Ray inside one run (population evaluation) gives
+    ``add_arguments`` (its own options) and ``run_context`` (the context its
+    runs go in, made from the parsed options); without them a single run with
+    ``--backend ray`` is refused, as it would have nothing to distribute.
+    """
 
     prog: str
     description: str
     #: The module run as ``python -m module`` by each replicate.
     module: str
     run_class: type[Run]
+    #: Adds the trainer's own run options to the parser's "run" group.
+    add_arguments: Callable[[argparse._ArgumentGroup], None] | None = None
+    #: The context a single run goes in (from the parsed options), e.g. its evaluation backend.
+    run_context: Callable[[argparse.Namespace], AbstractContextManager[object]] | None = None
 
     def parser(self) -> CommandParser:
         """The command's parser: the config's fields, then the run options."""
@@ -98,8 +113,22 @@ class TrainingCommand:
             "--workers",
             type=int,
             metavar="N",
-            help="replicates run at once (default: one per core)",
+            help="replicates run at once (default: one per core; with Ray, the cluster's CPUs)",
         )
+        run.add_argument(
+            "--backend",
+            choices=BACKENDS,
+            default="local",
+            help="where the work runs: this machine's processes (default) or a Ray cluster",
+        )
+        run.add_argument(
+            "--address",
+            metavar="ADDR",
+            help="the Ray cluster (with --backend ray): 'auto' for the one `ray start` runs"
+            " here, HOST:PORT for another; default: a private one on this machine",
+        )
+        if self.add_arguments is not None:
+            self.add_arguments(run)
         run.add_argument(
             "--progress",
             action=argparse.BooleanOptionalAction,
@@ -115,25 +144,42 @@ class TrainingCommand:
     def _run(self, argv: list[str]) -> int:
         args = self.parser().parse_args(argv)
         progress = sys.stderr.isatty() if args.progress is None else args.progress
-        if args.resume:
-            result = self.run_class.resume(args.resume, progress_bar=progress)
-        elif args.replay:
-            if not args.out:
-                raise UsageError("--replay needs --out, the folder of the new run")
-            result = self.run_class.replay(args.replay, args.out, progress_bar=progress)
-        elif args.replicates != 1:
+        check_backend(args.backend, args.address)
+        if args.replicates != 1:
             return replicate_command(
-                self.module, argv, args.seed, args.replicates, args.out, args.workers
+                self.module,
+                argv,
+                args.seed,
+                args.replicates,
+                args.out,
+                args.workers,
+                backend=args.backend,
+                address=args.address,
             )
-        else:
-            if not args.out:
-                raise UsageError("--out is required (or --resume DIR)")
-            config_class = self.run_class.config_class
-            data = config_class.from_file_and_arguments(args, args.config)
-            result = self.run_class.fresh(data, args.out, progress_bar=progress)
+        if args.backend == "ray" and self.run_context is None:
+            raise UsageError(
+                f"{self.prog} --backend ray runs replicates on Ray (--replicates K);"
+                " a single run has nothing to distribute"
+            )
+        context = self.run_context(args) if self.run_context else contextlib.nullcontext()
+        with context:
+            result = self._one_run(args, progress)
         print(result.headline)
         print(f"run folder: {result.out} ({', '.join(result.outputs)})")
         return 0
+
+    def _one_run(self, args: argparse.Namespace, progress: bool) -> RunResult:
+        if args.resume:
+            return self.run_class.resume(args.resume, progress_bar=progress)
+        if args.replay:
+            if not args.out:
+                raise UsageError("--replay needs --out, the folder of the new run")
+            return self.run_class.replay(args.replay, args.out, progress_bar=progress)
+        if not args.out:
+            raise UsageError("--out is required (or --resume DIR)")
+        config_class = self.run_class.config_class
+        data = config_class.from_file_and_arguments(args, args.config)
+        return self.run_class.fresh(data, args.out, progress_bar=progress)
 
     def entry_point(self) -> NoReturn:
         """Console-script entry point."""

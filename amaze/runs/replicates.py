@@ -140,6 +140,9 @@ def replicate_command(
     count: int,
     out: str | None,
     workers: int | None = None,
+    *,
+    backend: str = "local",
+    address: str | None = None,
 ) -> int:
     """What ``--replicates K`` does for the command ``python -m module``.
 
@@ -151,4 +154,6 @@ def replicate_command(
         raise UsageError("--out is required")
     seed = 0 if first_seed is None else first_seed
     plan = plan_replicates(module, [*argv, "--no-progress"], seed, count, out)
+    if backend == "ray":
+        raise UsageError("replicates on Ray are not available yet")
     return run_replicates(plan, workers)

@@ -41,6 +41,12 @@ logging and checkpoints).
   and of the population against the target's, over env steps;
 * ``trajectories/``: the champion in the target's 4 rotations.
 
+**Backends.** With ``--backend ray`` the agents are played on Ray actors
+(:mod:`evolution.backends`): each generation's batch of mazes is compiled
+here and put in the object store once, and the actors read it at their
+first part of that generation; the results, and so the run, are
+bit-identical to the local backend's.
+
 **Resume.** The checkpoint holds the algorithm, the maze population (its
 members, records, scores and random generator) and the champion, so a run
 resumed after a kill goes on bit-identically (seconds budgets aside).
@@ -73,9 +79,10 @@ from amaze.runs.folder import ProgressLog, write_bytes
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
+from evolution.backends import current_backend
 from evolution.config import CHECKPOINT_ALLOWLIST
 from evolution.generations import GenerationLoop
-from evolution.population import PopulationEvaluator
+from evolution.population import EvaluationBackend, PopulationEvaluator
 
 __all__ = ["EvolutionCoevolutionRun", "save_coevolution_plot"]
 
@@ -129,10 +136,10 @@ class EvolutionCoevolutionRun(GenerationLoop):
         return validation_mazes(c.target, self.options.validation, c.seed)
 
     @cached_property
-    def validation(self) -> PopulationEvaluator:
+    def validation(self) -> EvaluationBackend:
         """The validation mazes in their rotations (the champion is chosen there)."""
         c = self.config
-        return PopulationEvaluator(
+        return current_backend().evaluator(
             self.validation_mazes,
             c.robot,
             fitness=c.fitness,
@@ -239,7 +246,7 @@ class EvolutionCoevolutionRun(GenerationLoop):
         candidates = algorithm.ask()
         clock.lap("breeding")
         batch = s.mazes.propose()
-        evaluator = PopulationEvaluator(
+        evaluator = current_backend().evaluator(
             [rotated for b in batch for rotated in s.mazes.generated(b.maze)],
             c.robot,
             fitness=c.fitness,

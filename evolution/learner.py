@@ -35,6 +35,9 @@ current training session.
   evolution allow-list) and, once there is a champion, ``champion.npz`` (an
   agent file: ``amaze run --controller FOLDER/champion.npz``).
 
+Populations are played on the current backend (:mod:`evolution.backends`:
+this process, or Ray actors with identical results).
+
 Evaluations are deterministic and every draw comes from the algorithm's own
 generators, so the same seed on the same mazes gives bit-identical results in
 any process, and a learner saved mid-session, loaded and trained on with the
@@ -59,8 +62,9 @@ from amaze.validation import check_number
 from evolution import EvolutionConfigError
 from evolution.agent_file import policy_from_agent_arrays, save_agent
 from evolution.algorithms import ALGORITHMS, SearchAlgorithm, algorithm_class, make_algorithm
+from evolution.backends import Backend, current_backend
 from evolution.config import CHECKPOINT_ALLOWLIST
-from evolution.population import FITNESS, PopulationEvaluator, PopulationResult
+from evolution.population import FITNESS, EvaluationBackend, PopulationResult
 
 __all__ = ["LEARNER_FILE", "LEARNER_VERSION", "EvolutionLearner", "load_learner"]
 
@@ -133,7 +137,7 @@ class EvolutionLearner:
         self.env_steps = 0
         self.eval_seconds = 0.0
         self.version = LEARNER_VERSION
-        self._backend: tuple[tuple[str, ...], PopulationEvaluator] | None = None
+        self._backend: tuple[tuple[str, ...], Backend, EvaluationBackend] | None = None
 
     @classmethod
     def new(
@@ -271,14 +275,16 @@ class EvolutionLearner:
             and not self.algorithm.stopped
         )
 
-    def _evaluator(self, mazes: tuple[str, ...]) -> PopulationEvaluator:
-        if self._backend is None or self._backend[0] != mazes:
+    def _evaluator(self, mazes: tuple[str, ...]) -> EvaluationBackend:
+        """The evaluator of ``mazes`` on the current backend (kept while both stay the same)."""
+        backend = current_backend()
+        if self._backend is None or self._backend[:2] != (mazes, backend):
             # The mazes come with their rotations already: they are played as given.
-            evaluator = PopulationEvaluator(list(mazes), self.robot, fitness=self.fitness)
-            self._backend = (mazes, evaluator)
-        return self._backend[1]
+            evaluator = backend.evaluator(list(mazes), self.robot, fitness=self.fitness)
+            self._backend = (mazes, backend, evaluator)
+        return self._backend[2]
 
-    def _inherit_champion(self, session: Session, backend: PopulationEvaluator) -> None:
+    def _inherit_champion(self, session: Session, backend: EvaluationBackend) -> None:
         """The previous champion, played on the new session's mazes, becomes the one to beat."""
         if self.champion is None:
             return
@@ -295,7 +301,7 @@ class EvolutionLearner:
             self.champion, fitness=session.champion_fitness, mazes=session.mazes
         )
 
-    def _generation(self, session: Session, backend: PopulationEvaluator) -> None:
+    def _generation(self, session: Session, backend: EvaluationBackend) -> None:
         algorithm = self.algorithm
         candidates = algorithm.ask()
         result = backend.evaluate(algorithm.population_policy(candidates))

@@ -36,8 +36,9 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from amaze.agents.engine import BatchEngine
-from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR, check_deadline_factor
 from amaze.agents.robot import Robot, as_robot
+from amaze.agents.tables import MazeTables, compile_mazes
 from amaze.evaluation.policy import EpisodeResults, run_episodes
 from amaze.maze import Maze, MazeSpec, as_mazes
 from amaze.maze import rotations as maze_rotations  # the ``rotations`` flag shadows the name
@@ -160,8 +161,10 @@ class PopulationEvaluator:
     ``mazes`` (mazes, specs or maze strings) are played as given, once each
     (``rotations=True`` expands each to its 4 rotations first, see
     :func:`amaze.maze.rotations`). ``fitness`` is one of :data:`FITNESS`. Mazes
-    are generated and compiled once; one engine is kept per population size
-    (the first, for ``n_policies`` individuals, is built at once).
+    are generated and compiled once (``tables``: their compiled tables, when a
+    distributed backend ships them from where they were compiled); one engine
+    is kept per population size (the first, for ``n_policies`` individuals, is
+    built at once), all on the same tables.
     """
 
     def __init__(
@@ -173,18 +176,24 @@ class PopulationEvaluator:
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         rotations: bool = False,
         n_policies: int = 1,
+        tables: MazeTables | None = None,
     ) -> None:
         if fitness not in FITNESS:
             raise EvolutionConfigError(f"fitness {fitness!r} is not one of {', '.join(FITNESS)}")
         try:
             self.robot = as_robot(robot)
             self.mazes: list[Maze] = as_mazes(maze_rotations(mazes) if rotations else mazes)
+            self.deadline_factor = check_deadline_factor(deadline_factor)
+            self.tables = (
+                compile_mazes(self.mazes, self.robot, self.deadline_factor)
+                if tables is None
+                else tables
+            )
         except EvolutionConfigError:
             raise
         except ValueError as error:
             raise EvolutionConfigError(str(error)) from None
         self.fitness = fitness
-        self.deadline_factor = float(deadline_factor)
         self.maze_strings = [m.to_string() for m in self.mazes]
         self._engines: dict[int, BatchEngine] = {}
         # compiles the maze tables now (for populations of n_policies), checks the deadline factor
@@ -204,7 +213,7 @@ class PopulationEvaluator:
             try:
                 engine = BatchEngine(
                     self.mazes, self.robot, n_policies * self.n_episodes,
-                    deadline_factor=self.deadline_factor,
+                    deadline_factor=self.deadline_factor, tables=self.tables,
                 )  # fmt: skip
             except EvolutionConfigError:
                 raise

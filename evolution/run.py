@@ -10,9 +10,11 @@ same loop::
     result = backend.evaluate(algorithm.population_policy(candidates))
     algorithm.tell(candidates, result.fitness)
 
-The backend is an :class:`~evolution.population.EvaluationBackend` (locally a
-:class:`~evolution.population.PopulationEvaluator` on the batch engine; a
-distributed one can replace it without touching the algorithms). Fitness is
+The backend is an :class:`~evolution.population.EvaluationBackend` made by
+the current :mod:`evolution.backends` backend: locally a
+:class:`~evolution.population.PopulationEvaluator` on the batch engine, with
+``--backend ray`` the population split across Ray actors (bit-identical
+results, so the same champion). Fitness is
 the mean over the training mazes, each in its 4 rotations, of the paper's R̄
 (or the success rate, or the reference's pretty reward).
 
@@ -80,9 +82,10 @@ from amaze.runs.lifecycle import Run, RunResult
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
+from evolution.backends import current_backend
 from evolution.config import CHECKPOINT_ALLOWLIST, EvolveConfig
 from evolution.generations import GenerationLoop
-from evolution.population import EvaluationBackend, PopulationEvaluator
+from evolution.population import EvaluationBackend
 
 __all__ = ["EvolutionRun", "EvolveConfig", "evolve", "resume"]
 
@@ -118,7 +121,7 @@ class EvolutionRun(GenerationLoop):
     def backend(self) -> EvaluationBackend:
         """Where populations are played: the training mazes in their rotations."""
         c = self.config
-        return PopulationEvaluator(c.mazes, c.robot, fitness=c.fitness, rotations=True)
+        return current_backend().evaluator(c.mazes, c.robot, fitness=c.fitness, rotations=True)
 
     # -- the lifecycle's hooks --------------------------------------------------
 

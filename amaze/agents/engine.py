@@ -931,6 +931,13 @@ class BatchEngine:
     run batches large enough for threads to pay off when numba has several
     threads and the machine idle cores (see the module docstring). Both kernel
     families give identical results.
+
+    ``tables`` are the mazes' compiled tables when the caller has them already
+    (:func:`~amaze.agents.tables.compile_mazes` of the same mazes, robot and
+    deadline factor): engines of several sizes, or on several workers, then
+    share one compilation (give the mazes as :class:`~amaze.maze.Maze` objects
+    then, or they are generated again). Tables made for another robot, deadline
+    factor or number of mazes are refused.
     """
 
     def __init__(
@@ -943,12 +950,23 @@ class BatchEngine:
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         auto_reset: bool = True,
         parallel: bool | None = None,
+        tables: MazeTables | None = None,
     ) -> None:
         self.robot = as_robot(robot)
         self.n_agents = check_n_agents(n_agents, self.robot)
         self.deadline_factor = check_deadline_factor(deadline_factor)
         self.mazes = [as_maze(m) for m in mazes]
-        self.tables: MazeTables = compile_mazes(self.mazes, self.robot, self.deadline_factor)
+        if tables is None:
+            tables = compile_mazes(self.mazes, self.robot, self.deadline_factor)
+        elif (tables.robot, tables.deadline_factor, tables.n_mazes) != (
+            self.robot, self.deadline_factor, len(self.mazes),
+        ):  # fmt: skip
+            raise OptionError(
+                f"the tables are of {tables.n_mazes} mazes for robot {tables.robot} with deadline"
+                f" factor {tables.deadline_factor}, not of {len(self.mazes)} for {self.robot}"
+                f" with {self.deadline_factor}"
+            )
+        self.tables: MazeTables = tables
         self.auto_reset = bool(auto_reset)
         self.kind = self.robot.kind
         self.dt = self.tables.dt

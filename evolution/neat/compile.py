@@ -440,6 +440,8 @@ class GenomePopulation:
             raise ValueError("a genome population needs at least one genome")
         self.n_policies = len(networks)
         self.parallel = parallel
+        #: The genomes' arrays, for :meth:`subset` and pickling (the rest derives from them).
+        self.networks = [dict(arrays) for arrays in networks]
         n_inputs = self.n_inputs
         sizes = np.asarray([len(a["bias"]) for a in networks], dtype=np.int64)
         edges = np.asarray([len(a["weights"]) for a in networks], dtype=np.int64)
@@ -487,6 +489,26 @@ class GenomePopulation:
                 )
             networks.append(genome_to_arrays(genome)[0])
         return cls(networks, robot, parallel=parallel)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.networks, self.robot), {"parallel": self.parallel})
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.parallel = state.get("parallel")
+
+    def __len__(self) -> int:
+        return self.n_policies
+
+    def subset(self, indices: Sequence[int] | np.ndarray) -> GenomePopulation:
+        """The population of the genomes ``indices`` (in that order), for distributed evaluation."""
+        indices = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if indices.size == 0 or indices.min() < 0 or indices.max() >= self.n_policies:
+            raise EvolutionConfigError(
+                f"subset: give at least one index, each in [0, {self.n_policies})"
+            )
+        return GenomePopulation(
+            [self.networks[i] for i in indices.tolist()], self.robot, parallel=self.parallel
+        )
 
     def reset(self, n_agents: int) -> None:
         """Check that batches of ``n_agents`` observations can be shared by the P genomes."""

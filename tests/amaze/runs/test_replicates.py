@@ -7,7 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from amaze.runs.replicates import Replicate, plan_replicates, run_replicates, strip_options
+from amaze.runs.replicates import (
+    Replicate,
+    plan_replicates,
+    replicate_command,
+    run_replicates,
+    strip_options,
+)
 
 
 def test_strip_options_removes_values_in_both_forms() -> None:
@@ -48,3 +54,11 @@ def test_workers_run_at_once_and_failures_are_reported(tmp_path: Path) -> None:
         assert (replicate.out / "log.txt").read_text().startswith("threads ")
     with pytest.raises(ValueError, match="workers"):
         run_replicates(plan, workers=0)
+
+
+def test_a_replicate_trains_in_the_folder_that_holds_its_log(tmp_path: Path, capsys) -> None:
+    argv = ["--algo", "cmaes", "--mazes", "M0_5x5_U", "--max-generations", "1"]
+    assert replicate_command("evolution.cli", argv, 3, 1, str(tmp_path)) == 0
+    assert (tmp_path / "seed-3" / "summary.json").is_file()
+    assert (tmp_path / "seed-3" / "log.txt").read_text().startswith("1 generations")
+    assert capsys.readouterr().out.splitlines()[-1] == "seed 3: done"

@@ -4,14 +4,16 @@
 
     amaze-experiment run smoke --out studies/smoke [--workers 2]
     amaze-experiment run my-study.toml --out studies/mine
+    amaze-experiment run paper --out /shared/paper --backend ray --address auto   # a cluster
     amaze-experiment status studies/smoke
     amaze-experiment report studies/smoke      # report.md, runs.csv, tests.csv, figures/
     amaze-experiment list                      # the shipped studies
 
 ``run`` may be stopped (Ctrl-C, or ``kill`` of its process) and started
 again at any time: finished runs are kept, killed ones resume
-(:mod:`experiments.runner`). Bad input prints one
-line ``error: ...`` and exits with status 2.
+(:mod:`experiments.runner`). ``--backend ray`` runs each run as a Ray task
+on the cluster at ``--address`` (:mod:`amaze.runs.cluster`). Bad input
+prints one line ``error: ...`` and exits with status 2.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from amaze.runs.cluster import add_backend_arguments, check_backend
 from amaze.runs.command import CommandParser, run_command
 from experiments.report import write_report
 from experiments.runner import format_status, run_study, study_status
@@ -38,7 +41,13 @@ def parser() -> CommandParser:
     run = commands.add_parser("run", help="run a study's unfinished runs")
     run.add_argument("study", help=f"a shipped study ({', '.join(study_names())}) or a TOML file")
     run.add_argument("--out", required=True, metavar="DIR", help="the study's folder")
-    run.add_argument("--workers", type=int, metavar="N", help="runs at once (default: the cores)")
+    run.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="runs at once (default: the cores; with Ray, the cluster's CPUs)",
+    )
+    add_backend_arguments(run)
     run.add_argument(
         "--progress",
         action="store_true",
@@ -67,11 +76,19 @@ def _run(argv: Sequence[str]) -> int:
         path = write_report(args.out)
         print(f"report: {path}")
         return 0
+    check_backend(args.backend, args.address)
     study = load_study(args.study)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     # `kill PID` stops the study as Ctrl-C does (a background job ignores Ctrl-C's SIGINT)
     signal.signal(signal.SIGTERM, _interrupt)
-    status = run_study(study, args.out, workers=args.workers, progress_bar=progress)
+    status = run_study(
+        study,
+        args.out,
+        workers=args.workers,
+        progress_bar=progress,
+        backend=args.backend,
+        address=args.address,
+    )
     print(format_status(*study_status(args.out)))
     return status
 

@@ -20,6 +20,17 @@ stops the workers, which resume next time: a study can be stopped and
 restarted at any moment without losing a finished run. One progress bar
 covers the whole study: each run counts as the fraction of its budget it
 has spent (read from its ``progress.csv``), with an ETA.
+
+With ``backend="ray"`` (``--backend ray``) each run is a Ray task of one CPU
+running the same worker command (:mod:`amaze.runs.ray_tasks`), at most
+``workers`` at once (default: the cluster's CPUs), so a study fills a
+cluster; the study's folder must be on a filesystem all the nodes share.
+A run whose worker or node is lost, or whose process is killed, is retried
+by Ray and resumes from its checkpoint; a run that fails (non-zero exit) is
+recorded as failed, as on this machine. The bookkeeping, the progress bar
+and the interruption are the same for both backends (one loop,
+:func:`amaze.runs.launchers.run_jobs`); ``state.json`` records one thread
+per run on Ray.
 """
 
 from __future__ import annotations
@@ -28,7 +39,6 @@ import csv
 import io
 import json
 import os
-import subprocess
 import sys
 import time
 from collections.abc import Sequence
@@ -38,9 +48,11 @@ from pathlib import Path
 from typing import Any
 
 from amaze.errors import UsageError
+from amaze.runs.cluster import check_backend, cluster_cpus, connect
 from amaze.runs.folder import write_bytes, write_json
+from amaze.runs.launchers import Job, Launcher, ProcessLauncher, run_jobs
 from amaze.runs.lifecycle import CONFIG_FILE, SUMMARY_FILE
-from amaze.runs.replicates import worker_environment, worker_threads
+from amaze.runs.ray_tasks import RayLauncher
 from amaze.validation import check_integer
 from experiments.study import PlannedRun, Study, StudyError, parse_study
 
@@ -48,7 +60,7 @@ __all__ = ["RunStatus", "StudyFolder", "run_study", "study_status"]
 
 STUDY_FILE = "study.toml"
 STATE_FILE = "state.json"
-#: Seconds between two looks at the workers.
+#: Seconds between two looks at the runs.
 POLL_SECONDS = 0.5
 
 
@@ -209,17 +221,22 @@ def run_study(
     workers: int | None = None,
     progress_bar: bool = True,
     python: str = sys.executable,
+    backend: str = "local",
+    address: str | None = None,
 ) -> int:
     """Run every unfinished run of ``study`` in ``out``; 0 when all are finished, else 1.
 
-    See the module docstring. Raises :class:`~amaze.errors.UsageError` for a
-    folder that holds another study or is being run by another process.
+    See the module docstring: ``backend="ray"`` runs each run as a Ray task
+    on the cluster at ``address``. Raises :class:`~amaze.errors.UsageError`
+    for a folder that holds another study or is being run by another
+    process, and for a cluster that cannot be reached.
     """
     from tqdm import tqdm
 
-    if workers is None:
-        workers = max(1, os.cpu_count() or 1)
-    workers = check_integer("--workers", workers, minimum=1, maximum=256, error=UsageError)
+    check_backend(backend, address)
+    if workers is not None:
+        workers = check_integer("--workers", workers, minimum=1, maximum=256, error=UsageError)
+    ray = connect(address) if backend == "ray" else None
     folder = StudyFolder(out)
     folder.adopt(study)
     state = folder.state()
@@ -230,11 +247,18 @@ def run_study(
             f" {runner.get('started')}); stop it first"
         )
     waiting = [run for run in study.runs if not folder.finished(run)]
-    threads = worker_threads(min(workers, max(1, len(waiting))))
-    environment = worker_environment(min(workers, max(1, len(waiting))))
-    state.update({"runner": {"pid": os.getpid(), "started": _now()}, "running": []})
+    launcher: Launcher
+    if ray is not None:
+        launcher = RayLauncher(ray)
+        workers = workers or cluster_cpus(ray)
+    else:
+        workers = workers or max(1, os.cpu_count() or 1)
+        launcher = ProcessLauncher(min(workers, max(1, len(waiting))))
+    state.update(
+        {"runner": {"pid": os.getpid(), "started": _now(), "backend": backend}, "running": []}
+    )
     folder.save_state(state)
-    running: dict[str, tuple[PlannedRun, subprocess.Popen, Any, float]] = {}
+    started_at: dict[str, float] = {}
     done = len(study.runs) - len(waiting)
     bar = tqdm(
         total=float(len(study.runs)),
@@ -246,68 +270,60 @@ def run_study(
         bar_format="{l_bar}{bar}| {n:.1f}/{total:.0f} runs [{elapsed}<{remaining}{postfix}]",
     )
 
-    def finish(run: PlannedRun, code: int, started: float) -> None:
-        nonlocal done
-        seconds = state["wall_seconds"].get(run.id, 0.0) + (time.monotonic() - started)
+    def prepare(run: PlannedRun) -> Job:
+        write_json(folder.config_file(run), run.config)
+        folder.log_file(run).parent.mkdir(parents=True, exist_ok=True)
+        with folder.log_file(run).open("a", encoding="utf-8") as log:
+            log.write(f"--- {_now()}: started by the study runner\n")
+        command = [python, "-m", "experiments.worker", "--config", str(folder.config_file(run))]
+        return Job([*command, "--out", str(folder.run_folder(run))], folder.log_file(run))
+
+    def started(run: PlannedRun) -> None:
+        started_at[run.id] = time.monotonic()
+        state["running"] = list(started_at)
+        folder.save_state(state)
+
+    def spent(run: PlannedRun) -> None:
+        seconds = state["wall_seconds"].get(run.id, 0.0) + (
+            time.monotonic() - started_at.pop(run.id)
+        )
         state["wall_seconds"][run.id] = round(seconds, 3)
-        state["threads"][run.id] = threads
+        state["threads"][run.id] = launcher.threads
+
+    def ended(run: PlannedRun, code: int) -> None:
+        nonlocal done
+        spent(run)
         if code == 0 and folder.finished(run):
             state["failed"].pop(run.id, None)
             done += 1
         else:
             state["failed"][run.id] = {"status": code, "time": _now()}
             bar.write(f"{run.id}: failed (exit {code}), see {folder.log_file(run)}")
+        state["running"] = list(started_at)
+        folder.save_state(state)
+
+    def polled(running: list[PlannedRun]) -> None:
+        bar.n = done + sum(folder.fraction(run) for run in running)
+        bar.set_postfix_str(f"{len(running)} running, {len(state['failed'])} failed")
+        bar.refresh()
+
+    def stopped(running: list[PlannedRun]) -> None:  # interrupted: they resume next time
+        for run in running:
+            spent(run)
 
     try:
-        while waiting or running:
-            while waiting and len(running) < workers:
-                run = waiting.pop(0)
-                write_json(folder.config_file(run), run.config)
-                folder.log_file(run).parent.mkdir(parents=True, exist_ok=True)
-                log = folder.log_file(run).open("a", encoding="utf-8")
-                log.write(f"--- {_now()}: started by the study runner\n")
-                log.flush()
-                command = [
-                    python,
-                    "-m",
-                    "experiments.worker",
-                    "--config",
-                    str(folder.config_file(run)),
-                    "--out",
-                    str(folder.run_folder(run)),
-                ]
-                process = subprocess.Popen(
-                    command, stdout=log, stderr=subprocess.STDOUT, env=environment
-                )
-                running[run.id] = (run, process, log, time.monotonic())
-                state["running"] = list(running)
-                folder.save_state(state)
-            time.sleep(POLL_SECONDS)
-            for run_id, (run, process, log, started) in list(running.items()):
-                code = process.poll()
-                if code is None:
-                    continue
-                log.close()
-                del running[run_id]
-                finish(run, code, started)
-                state["running"] = list(running)
-                folder.save_state(state)
-            partial = sum(folder.fraction(run) for run, *_ in running.values())
-            bar.n = done + partial
-            bar.set_postfix_str(f"{len(running)} running, {len(state['failed'])} failed")
-            bar.refresh()
+        run_jobs(
+            launcher,
+            waiting,
+            workers,
+            prepare,
+            ended,
+            started=started,
+            polled=polled,
+            stopped=stopped,
+            poll_seconds=POLL_SECONDS,
+        )
     finally:
-        for run, process, log, started in running.values():  # interrupted: stop, resume later
-            process.terminate()
-            try:
-                process.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
-            log.close()
-            seconds = state["wall_seconds"].get(run.id, 0.0) + (time.monotonic() - started)
-            state["wall_seconds"][run.id] = round(seconds, 3)
-            state["threads"][run.id] = threads
         state["running"] = []
         state["runner"] = None
         folder.save_state(state)

@@ -15,12 +15,22 @@ shared cluster, a notebook's ``ray.init``) keeps its connection.
 
 from __future__ import annotations
 
+import argparse
+import signal
+import threading
 from types import ModuleType
 from typing import Any
 
 from amaze.errors import UsageError
 
-__all__ = ["BACKENDS", "check_backend", "cluster_cpus", "connect", "import_ray"]
+__all__ = [
+    "BACKENDS",
+    "add_backend_arguments",
+    "check_backend",
+    "cluster_cpus",
+    "connect",
+    "import_ray",
+]
 
 #: The execution backends of ``--backend``.
 BACKENDS: tuple[str, ...] = ("local", "ray")
@@ -41,6 +51,22 @@ def check_backend(backend: Any, address: Any = None) -> str:
     return str(backend)
 
 
+def add_backend_arguments(group: argparse._ActionsContainer) -> None:
+    """Add ``--backend`` and ``--address`` to ``group`` (a parser or one of its groups)."""
+    group.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default="local",
+        help="where the work runs: this machine's processes (default) or a Ray cluster",
+    )
+    group.add_argument(
+        "--address",
+        metavar="ADDR",
+        help="the Ray cluster (with --backend ray): 'auto' for the one `ray start` runs"
+        " here, HOST:PORT for another; default: a private one on this machine",
+    )
+
+
 def import_ray() -> ModuleType:
     """The ``ray`` module, or a :class:`UsageError` saying how to install it."""
     try:
@@ -55,7 +81,9 @@ def import_ray() -> ModuleType:
 def connect(address: str | None = None) -> ModuleType:
     """Connect this process to Ray (see the module docstring); return the ``ray`` module.
 
-    An unreachable ``address`` raises :class:`UsageError` naming it.
+    An unreachable ``address`` raises :class:`UsageError` naming it. The
+    process keeps its own handling of SIGTERM, which ``ray.init`` replaces
+    with an immediate exit (a study runner stops its runs on SIGTERM first).
     """
     ray = import_ray()
     if ray.is_initialized():
@@ -64,10 +92,15 @@ def connect(address: str | None = None) -> ModuleType:
     if address is None:
         options["configure_logging"] = True
         options["logging_level"] = "warning"
+    main_thread = threading.current_thread() is threading.main_thread()
+    sigterm = signal.getsignal(signal.SIGTERM) if main_thread else None
     try:
         ray.init(address=address, **options)
     except (ConnectionError, ValueError, RuntimeError) as problem:
         raise UsageError(f"--address {address!r}: cannot connect to Ray: {problem}") from None
+    finally:
+        if main_thread and sigterm is not None:
+            signal.signal(signal.SIGTERM, sigterm)
     return ray
 
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import NoReturn
 
 from amaze.errors import AmazeError, UsageError, one_line
-from amaze.runs.cluster import BACKENDS, check_backend
+from amaze.runs.cluster import add_backend_arguments, check_backend
 from amaze.runs.lifecycle import Run, RunResult
 from amaze.runs.replicates import replicate_command
 
@@ -115,18 +115,7 @@ class TrainingCommand:
             metavar="N",
             help="replicates run at once (default: one per core; with Ray, the cluster's CPUs)",
         )
-        run.add_argument(
-            "--backend",
-            choices=BACKENDS,
-            default="local",
-            help="where the work runs: this machine's processes (default) or a Ray cluster",
-        )
-        run.add_argument(
-            "--address",
-            metavar="ADDR",
-            help="the Ray cluster (with --backend ray): 'auto' for the one `ray start` runs"
-            " here, HOST:PORT for another; default: a private one on this machine",
-        )
+        add_backend_arguments(run)
         if self.add_arguments is not None:
             self.add_arguments(run)
         run.add_argument(

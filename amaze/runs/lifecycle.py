@@ -39,10 +39,13 @@ from amaze.evaluation.protocol import Evaluator
 from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import ProgressLog, write_json
 
-__all__ = ["CONFIG_FILE", "SUMMARY_FILE", "Run", "RunResult"]
+__all__ = ["CONFIG_FILE", "LOG_FILE", "SUMMARY_FILE", "Run", "RunResult"]
 
 CONFIG_FILE = "config.json"
 SUMMARY_FILE = "summary.json"
+#: What the process of a replicate prints (:mod:`amaze.runs.replicates`): it is
+#: opened before the run starts, so a folder holding only it counts as empty.
+LOG_FILE = "log.txt"
 
 
 @dataclass(frozen=True)
@@ -231,11 +234,15 @@ class Run(ABC):
 
     @staticmethod
     def _check_new_folder(path: Path, error: type[ValueError]) -> None:
-        """A new run goes into a new or empty folder; anything else is refused untouched."""
+        """A new run goes into a new or empty folder; anything else is refused untouched.
+
+        A folder that holds only :data:`LOG_FILE` (the output of the process
+        about to run there) counts as empty.
+        """
         if path.is_dir():
             if (path / CONFIG_FILE).exists():
                 raise error(f"{str(path)!r} already holds a run (use --resume)")
-            if any(path.iterdir()):
+            if any(entry.name != LOG_FILE for entry in path.iterdir()):
                 raise error(
                     f"{str(path)!r} is not empty and holds no run: give a new or empty folder"
                 )

@@ -8,23 +8,40 @@ cannot disturb one another and a crash stays in its folder. Each worker gets
 an equal share of the cores (``NUMBA_NUM_THREADS``, ``OMP_NUM_THREADS``) so
 ``K`` workers do not oversubscribe the machine. A replicate's output goes to
 ``OUT/seed-<s>/log.txt``.
+
+With ``--backend ray`` each replicate is a Ray task of one CPU
+(:mod:`amaze.runs.ray_tasks`), all of them at once by default (Ray queues
+what the cluster cannot hold). A replicate evaluates its population
+locally, in its task: ``--backend``, ``--address`` and ``--actors`` are not
+passed on, and ``--actors`` (Ray actors inside one run) is refused with
+``--replicates``. A task that Ray runs again, or a replicate whose folder
+holds a run already, resumes that run (``--resume``) instead of failing.
 """
 
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
 
 from amaze.errors import UsageError
+from amaze.runs.cluster import check_backend
+from amaze.runs.launchers import (
+    Job,
+    Launcher,
+    ProcessLauncher,
+    run_jobs,
+    worker_environment,
+    worker_threads,
+)
+from amaze.runs.lifecycle import CONFIG_FILE, LOG_FILE
+from amaze.runs.ray_tasks import RayLauncher
 from amaze.validation import check_integer
 
 __all__ = [
+    "NOT_PASSED_ON",
     "Replicate",
     "plan_replicates",
     "replicate_command",
@@ -35,13 +52,30 @@ __all__ = [
 ]
 
 
+#: Options of the whole command that its replicates do not get: each replicate
+#: runs (and evaluates its population) in its own process or Ray task.
+NOT_PASSED_ON = ("--backend", "--address", "--actors")
+
+
 @dataclass(frozen=True)
 class Replicate:
-    """One replicate: its seed, run folder and command line."""
+    """One replicate: its seed, run folder and command line, and how to resume it."""
 
     seed: int
     out: Path
     command: list[str]
+    #: The command line that continues the replicate's run from its folder.
+    resume: list[str] | None = None
+
+    @property
+    def log(self) -> Path:
+        """The file the replicate's output goes to."""
+        return self.out / LOG_FILE
+
+    @property
+    def marker(self) -> Path:
+        """The file that says the replicate's folder holds a run (to be resumed)."""
+        return self.out / CONFIG_FILE
 
 
 def strip_options(argv: Sequence[str], options: Sequence[str]) -> list[str]:
@@ -66,70 +100,54 @@ def plan_replicates(
     """The command lines of ``count`` replicates of ``python -m module argv``.
 
     ``--replicates``, ``--workers``, ``--seed`` and ``--out`` are replaced by each
-    replicate's own seed and folder ``out/seed-<s>``; every other option is kept.
+    replicate's own seed and folder ``out/seed-<s>``; so are the options of
+    where the work runs (:data:`NOT_PASSED_ON`); every other option is kept.
     """
     check_integer("--replicates", count, minimum=1, error=UsageError)
-    base = strip_options(argv, ("--replicates", "--workers", "--seed", "--out"))
+    base = strip_options(argv, ("--replicates", "--workers", "--seed", "--out", *NOT_PASSED_ON))
     plan = []
     for seed in range(first_seed, first_seed + count):
         folder = Path(out) / f"seed-{seed}"
         command = [sys.executable, "-m", module, *base, "--seed", str(seed), "--out", str(folder)]
-        plan.append(Replicate(seed, folder, command))
+        resume = [sys.executable, "-m", module, "--resume", str(folder), "--no-progress"]
+        plan.append(Replicate(seed, folder, command, resume))
     return plan
 
 
-def worker_threads(workers: int) -> int:
-    """The threads each of ``workers`` parallel processes gets: an equal share of the cores."""
-    return max(1, (os.cpu_count() or 1) // workers)
+def run_replicates(
+    plan: Sequence[Replicate], workers: int | None = None, launcher: Launcher | None = None
+) -> int:
+    """Run ``plan``, at most ``workers`` at a time, as ``launcher`` starts them.
 
-
-def worker_environment(workers: int) -> dict[str, str]:
-    """The environment of one of ``workers`` parallel processes (its thread pools sized)."""
-    threads = str(worker_threads(workers))
-    env = dict(os.environ)
-    env.update({"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": threads, "PYTHONUNBUFFERED": "1"})
-    return env
-
-
-def run_replicates(plan: Sequence[Replicate], workers: int | None = None) -> int:
-    """Run ``plan``, at most ``workers`` processes at a time (default: one per core).
-
-    Prints one line when each replicate starts and ends. Returns 0 when all
+    The default launcher is processes of this machine, at most one per core
+    by default. A launcher that may start a replicate again (Ray's retries)
+    gets its resume command for when its folder holds a run already. Prints
+    one line when each replicate starts and ends. Returns 0 when all
     succeeded, else the first non-zero exit status (the others still run).
     """
     if workers is None:
-        workers = min(len(plan), os.cpu_count() or 1)
+        workers = min(len(plan), os.cpu_count() or 1) if launcher is None else len(plan)
     check_integer("--workers", workers, minimum=1, error=UsageError)
-    env = worker_environment(workers)
-    waiting = list(plan)
-    running: list[tuple[Replicate, subprocess.Popen, TextIO]] = []
+    if launcher is None:
+        launcher = ProcessLauncher(workers)
+    resumes = launcher.retries > 0
     status = 0
-    try:
-        while waiting or running:
-            while waiting and len(running) < workers:
-                replicate = waiting.pop(0)
-                replicate.out.mkdir(parents=True, exist_ok=True)
-                log = (replicate.out / "log.txt").open("a")
-                process = subprocess.Popen(
-                    replicate.command, stdout=log, stderr=subprocess.STDOUT, env=env
-                )
-                running.append((replicate, process, log))
-                print(f"seed {replicate.seed}: started, log in {replicate.out / 'log.txt'}")
-            time.sleep(0.2)
-            for entry in list(running):
-                replicate, process, log = entry
-                code = process.poll()
-                if code is None:
-                    continue
-                log.close()
-                running.remove(entry)
-                print(f"seed {replicate.seed}: {'done' if code == 0 else f'failed ({code})'}")
-                status = status or code
-    finally:
-        for _, process, log in running:  # interrupted: stop the workers still running
-            process.terminate()
-            process.wait()
-            log.close()
+
+    def prepare(replicate: Replicate) -> Job:
+        replicate.out.mkdir(parents=True, exist_ok=True)
+        if resumes and replicate.resume is not None:
+            return Job(replicate.command, replicate.log, replicate.resume, replicate.marker)
+        return Job(replicate.command, replicate.log)
+
+    def started(replicate: Replicate) -> None:
+        print(f"seed {replicate.seed}: started, log in {replicate.log}")
+
+    def ended(replicate: Replicate, code: int) -> None:
+        nonlocal status
+        print(f"seed {replicate.seed}: {'done' if code == 0 else f'failed ({code})'}")
+        status = status or code
+
+    run_jobs(launcher, list(plan), workers, prepare, ended, started=started)
     return status
 
 
@@ -147,13 +165,27 @@ def replicate_command(
     """What ``--replicates K`` does for the command ``python -m module``.
 
     Seeds ``first_seed`` (default 0) onwards, each in ``out/seed-<s>``, as
-    parallel workers without progress bars (their output goes to log files).
-    Bad values raise :class:`~amaze.errors.UsageError`.
+    parallel workers without progress bars (their output goes to log files):
+    processes of this machine, or with ``backend="ray"`` tasks on the Ray
+    cluster at ``address`` (see the module docstring). Bad values raise
+    :class:`~amaze.errors.UsageError`.
     """
+    check_backend(backend, address)
     if not out:
         raise UsageError("--out is required")
+    if any(token.split("=", 1)[0] == "--actors" for token in argv):
+        raise UsageError(
+            "--actors spreads the evaluation of one run over Ray actors; with --replicates"
+            " each replicate is one process (one Ray task with --backend ray) that evaluates"
+            " locally: give --replicates or --actors, not both"
+        )
     seed = 0 if first_seed is None else first_seed
-    plan = plan_replicates(module, [*argv, "--no-progress"], seed, count, out)
-    if backend == "ray":
-        raise UsageError("replicates on Ray are not available yet")
-    return run_replicates(plan, workers)
+    if backend != "ray":
+        return run_replicates(
+            plan_replicates(module, [*argv, "--no-progress"], seed, count, out), workers
+        )
+    # every node reads the command lines: their paths must not depend on its folder
+    plan = plan_replicates(module, [*argv, "--no-progress"], seed, count, Path(out).absolute())
+    if workers is not None:
+        check_integer("--workers", workers, minimum=1, error=UsageError)
+    return run_replicates(plan, workers, RayLauncher.connect(address))

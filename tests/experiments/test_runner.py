@@ -107,6 +107,8 @@ def test_a_failed_run_is_reported_and_tried_again(
     [
         (["run", "no-such-study", "--out", "x"], "no-such-study"),
         (["run", "smoke", "--out", "x", "--workers", "0"], "--workers"),
+        (["run", "smoke", "--out", "x", "--address", "head:6379"], "--address"),
+        (["run", "smoke", "--out", "x", "--backend", "spark"], "--backend"),
         (["status", "nowhere"], "nowhere"),
         (["report", "nowhere"], "nowhere"),
         (["fly"], "fly"),
@@ -119,4 +121,14 @@ def test_bad_commands_give_one_error_line_and_status_2(
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and named in err[0]
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_study_on_ray_without_ray_is_a_usage_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    assert main(["run", "smoke", "--out", str(tmp_path / "x"), "--backend", "ray"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install 'amaze-evo[ray]'" in err[0]
     assert not (tmp_path / "x").exists()

@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import contextlib
+import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from amaze.runs.replicates import Replicate, plan_replicates, run_replicates, strip_options
+from amaze.runs.command import TrainingCommand
+from amaze.runs.replicates import (
+    Replicate,
+    plan_replicates,
+    replicate_command,
+    run_replicates,
+    strip_options,
+)
+from tests.amaze.runs.toy_curriculum import ToyRun
 
 
 def test_strip_options_removes_values_in_both_forms() -> None:
@@ -48,3 +58,58 @@ def test_workers_run_at_once_and_failures_are_reported(tmp_path: Path) -> None:
         assert (replicate.out / "log.txt").read_text().startswith("threads ")
     with pytest.raises(ValueError, match="workers"):
         run_replicates(plan, workers=0)
+
+
+def test_a_replicate_trains_in_the_folder_that_holds_its_log(tmp_path: Path, capsys) -> None:
+    argv = ["--algo", "cmaes", "--mazes", "M0_5x5_U", "--max-generations", "1"]
+    assert replicate_command("evolution.cli", argv, 3, 1, str(tmp_path)) == 0
+    assert (tmp_path / "seed-3" / "summary.json").is_file()
+    assert (tmp_path / "seed-3" / "log.txt").read_text().startswith("1 generations")
+    assert capsys.readouterr().out.splitlines()[-1] == "seed 3: done"
+
+
+def _toy_command(**fields) -> TrainingCommand:
+    """A training command of the toy trainer, with an ``--actors`` option as ``amaze-evolve``'s."""
+    return TrainingCommand(
+        "toy",
+        "a toy trainer",
+        "tests.amaze.runs.toy_curriculum",
+        ToyRun,
+        add_arguments=lambda group: group.add_argument("--actors", type=int),
+        run_context=lambda args: contextlib.nullcontext(),
+        **fields,
+    )
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["--replicates", "2", "--backend", "ray", "--actors", "2"], "--actors"),
+        (["--replicates", "2", "--actors=2"], "--actors"),
+        (["--replicates", "2", "--address", "head:6379"], "--address"),
+        (["--address", "head:6379"], "--address"),
+    ],
+)
+def test_replicates_refuse_options_of_another_backend(
+    argv: list[str], named: str, tmp_path: Path, capsys
+) -> None:
+    assert _toy_command().main([*argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and named in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_ray_missing_is_a_usage_error(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    argv = ["--replicates", "2", "--backend", "ray", "--out", str(tmp_path / "out")]
+    assert _toy_command().main(argv) == 2
+    assert "pip install 'amaze-evo[ray]'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_local_backend_never_imports_ray() -> None:
+    code = (
+        "import sys, amaze.runs.command, amaze.runs.ray_tasks, experiments.cli;"
+        " sys.exit('ray' in sys.modules)"
+    )
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0

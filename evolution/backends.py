@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import os
 import time
 from collections import OrderedDict
 from collections.abc import Iterator, Sequence
@@ -62,6 +63,7 @@ from evolution.population import (
 __all__ = [
     "ACTOR_RESTARTS",
     "Backend",
+    "EvaluationActor",
     "LocalBackend",
     "RayBackend",
     "RayEvaluator",
@@ -81,7 +83,10 @@ ACTOR_MAZE_SETS = 4
 
 
 class Backend(Protocol):
-    """What makes evaluators: :class:`LocalBackend`, :class:`RayBackend`."""
+    """What makes evaluators: :class:`LocalBackend`, :class:`RayBackend`.
+
+    The keywords are those of :class:`~evolution.population.PopulationEvaluator`.
+    """
 
     def evaluator(
         self,
@@ -104,20 +109,10 @@ class LocalBackend:
         self,
         mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str],
         robot: Robot | str,
-        *,
-        fitness: str = "paper_reward",
-        deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
-        rotations: bool = False,
-        n_policies: int = 1,
+        **options: Any,
     ) -> PopulationEvaluator:
-        return PopulationEvaluator(
-            mazes,
-            robot,
-            fitness=fitness,
-            deadline_factor=deadline_factor,
-            rotations=rotations,
-            n_policies=n_policies,
-        )
+        """A :class:`PopulationEvaluator` (``options``: its keywords, as :class:`Backend`'s)."""
+        return PopulationEvaluator(mazes, robot, **options)
 
     def __repr__(self) -> str:
         return "LocalBackend()"
@@ -183,13 +178,10 @@ class EvaluationActor:
             while len(self.evaluators) > ACTOR_MAZE_SETS:
                 self.evaluators.popitem(last=False)
         self.evaluators.move_to_end(key)
-        result = evaluator.evaluate(part)
-        return result
+        return evaluator.evaluate(part)
 
     def pid(self) -> int:
         """The actor's process id (to watch it, or to kill it in a failure test)."""
-        import os
-
         return os.getpid()
 
 
@@ -239,16 +231,15 @@ class RayBackend:
         self,
         mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str],
         robot: Robot | str,
-        *,
-        fitness: str = "paper_reward",
-        deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
-        rotations: bool = False,
-        n_policies: int = 1,
+        **options: Any,
     ) -> RayEvaluator:
-        local = PopulationEvaluator(
-            mazes, robot, fitness=fitness, deadline_factor=deadline_factor, rotations=rotations
-        )  # generated, compiled and checked here, once
-        return RayEvaluator(self, local)
+        """The evaluator of ``mazes`` on the actors (``options``: as :class:`Backend`'s).
+
+        The mazes are generated, compiled and checked here, once; ``n_policies``
+        (the engine to build at once) is the actors' business.
+        """
+        options.pop("n_policies", None)
+        return RayEvaluator(self, PopulationEvaluator(mazes, robot, **options))
 
     def actor_pids(self) -> list[int]:
         """The process ids of the actors, in order."""

@@ -106,6 +106,11 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert err.startswith("error: ") and "5" in err and err.count("\n") == 1
     assert main(["--resume", str(tmp_path / "nothing")]) == 2
     assert main(["--algo", "sac"]) == 2
+    capsys.readouterr()
+    # one RL run has nothing to put on Ray (its replicates do): refused before Ray starts
+    assert main(["--backend", "ray", "--out", str(tmp_path / "r")]) == 2
+    assert "runs replicates on Ray (--replicates K)" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
 
 
 def test_run_folder_and_refusal_to_overwrite(tmp_path: Path) -> None:

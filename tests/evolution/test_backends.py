@@ -271,3 +271,40 @@ def test_a_killed_actor_is_restarted_and_the_generation_unchanged(ray_cluster) -
         _assert_same(result, local)
         assert backend.actor_pids()[0] != victim  # restarted, and it plays on
         _assert_same(evaluator.evaluate(policy), local)
+
+
+@ray_tests
+def test_a_run_whose_actor_is_killed_ends_as_the_local_run(ray_cluster, tmp_path: Path) -> None:
+    from evolution.run import evolve
+
+    config = {
+        "algo": "cmaes",
+        "mazes": ["M3_10x10_C1_l.25_L.25", "M4_9x9_U"],
+        "budget_steps": None,
+        "max_generations": 25,
+        "checkpoint_seconds": 0,
+        "algorithm": {"population_size": 64, "network": {"hidden": [8]}},
+    }
+    evolve(config, tmp_path / "local")
+    with RayBackend(actors=2) as backend, use_backend(backend):
+        victim = backend.actor_pids()[1]
+        progress = tmp_path / "ray" / "progress.csv"
+
+        def kill_midway() -> None:  # once a few generations are logged
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                if progress.exists() and len(progress.read_text().splitlines()) > 5:
+                    os.kill(victim, signal.SIGKILL)
+                    return
+                time.sleep(0.01)
+
+        killer = threading.Thread(target=kill_midway)
+        killer.start()
+        evolve(config, tmp_path / "ray")
+        killer.join()
+        assert backend.actor_pids()[1] != victim  # it was killed mid-run, and restarted
+    assert _progress(tmp_path / "local") == _progress(tmp_path / "ray")
+    local = read_agent(tmp_path / "local" / "champion.npz")[0]
+    distributed = read_agent(tmp_path / "ray" / "champion.npz")[0]
+    for name in local:
+        np.testing.assert_array_equal(local[name], distributed[name])

@@ -217,9 +217,7 @@ class RayBackend:
         )(EvaluationActor)
         self.actors = [actor_class.remote() for _ in range(self.n_actors)]
         try:  # placed and started (their CPUs held) before the backend is used
-            self.pids = self.ray.get(
-                [actor.pid.remote() for actor in self.actors], timeout=ACTOR_START_SECONDS
-            )
+            self.ray.get([actor.pid.remote() for actor in self.actors], timeout=ACTOR_START_SECONDS)
         except self.ray.exceptions.GetTimeoutError:
             self.close()
             raise EvolutionConfigError(
@@ -293,10 +291,6 @@ class RayEvaluator:
     def n_episodes(self) -> int:
         """Episodes per individual (M): the number of mazes played."""
         return self.local.n_episodes
-
-    @property
-    def mazes(self) -> list[Maze]:
-        return self.local.mazes
 
     def evaluate(self, policy: PopulationPolicy | Any) -> PopulationResult:
         """Play every individual of ``policy`` once in each maze, split across the actors.

@@ -7,7 +7,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -15,6 +14,7 @@ import pytest
 from experiments.cli import main
 from experiments.runner import StudyFolder, format_status, study_status
 from experiments.study import parse_study
+from tests.processes import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Three CMA-ES runs of about 3 s of training each, one at a time.
@@ -32,13 +32,6 @@ clock = { seconds = 3 }
 checkpoint_seconds = 0.2
 mazes = ["M1_5x5_C1"]
 """
-
-
-def wait_until(condition, timeout: float = 120.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.1)
 
 
 @pytest.mark.slow

@@ -11,10 +11,10 @@ from the same seed before each phase. The phases, in order:
 6. lures placed on non-intersection path cells (``sample`` + ``choice``);
 7. some clues turned into traps pointing a wrong, open way.
 
-Phase 1 is the hot loop: it runs in compiled code (numba) on a block of raw
-32-bit MT19937 outputs taken from ``random.Random(seed).getrandbits`` and
-re-implements CPython's ``choice``/``_randbelow`` on them, which is exact. The
-other phases use ``random.Random`` itself, exactly as the reference does.
+This module is the readable definition, written with ``random.Random`` as
+the reference is; :mod:`amaze.maze.compiled_generation` runs the same phases
+in one compiled call (what :meth:`amaze.maze.maze.Maze.generate` uses), and
+the tests check the two agree.
 
 One deliberate difference: at a four-way crossing a trap has two wrong open
 directions to choose from, and the reference picks by iterating a ``set`` of
@@ -32,7 +32,6 @@ import random
 from itertools import cycle, islice
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
 from amaze.maze.directions import OFFSETS, Cell, Direction, direction_between
@@ -40,90 +39,34 @@ from amaze.maze.signs import PlacedSign, SignKind
 from amaze.maze.spec import MazeSpec, StartLocation
 
 _DIRECTIONS = tuple(Direction)
-_OFFSET_I = np.array([d[0] for d in OFFSETS], dtype=np.int64)
-_OFFSET_J = np.array([d[1] for d in OFFSETS], dtype=np.int64)
-
-
-@numba.njit(cache=True, nogil=True)
-def _carve(words, width, height, start_i, start_j, end_i, end_j, offset_i, offset_j):
-    """Depth-first carving (reference §3.2) driven by raw MT19937 outputs.
-
-    Returns ``(walls, solution, n_solution)``; ``n_solution`` is -1 when
-    ``words`` ran out (the caller retries with more words).
-    """
-    n_cells = width * height
-    walls = np.ones((width, height, 4), dtype=np.bool_)
-    visited = np.zeros((width, height), dtype=np.bool_)
-    stack_i = np.empty(n_cells + 1, dtype=np.int64)
-    stack_j = np.empty(n_cells + 1, dtype=np.int64)
-    solution = np.empty((n_cells, 2), dtype=np.int64)
-    n_solution = 0
-    neighbour_dirs = np.empty(4, dtype=np.int64)
-    word = 0
-    n_words = words.shape[0]
-
-    stack_i[0], stack_j[0] = start_i, start_j
-    top = 1
-    visited[start_i, start_j] = True
-    while top > 0:
-        if stack_i[top - 1] == end_i and stack_j[top - 1] == end_j:
-            n_solution = top
-            for k in range(top):
-                solution[k, 0] = stack_i[k]
-                solution[k, 1] = stack_j[k]
-        top -= 1
-        ci, cj = stack_i[top], stack_j[top]
-        n = 0
-        for d in range(4):
-            ni, nj = ci + offset_i[d], cj + offset_j[d]
-            if 0 <= ni < width and 0 <= nj < height and not visited[ni, nj]:
-                neighbour_dirs[n] = d
-                n += 1
-        if n == 0:
-            continue
-        # random.choice(seq) == seq[_randbelow(len(seq))], with
-        # _randbelow(n): k = n.bit_length(); r = getrandbits(k) until r < n.
-        k = 0
-        while (n >> k) != 0:
-            k += 1
-        while True:
-            if word >= n_words:
-                return walls, solution, -1
-            r = words[word] >> (32 - k)
-            word += 1
-            if r < n:
-                break
-        d = neighbour_dirs[r]
-        ni, nj = ci + offset_i[d], cj + offset_j[d]
-        visited[ni, nj] = True
-        walls[ci, cj, d] = False
-        walls[ni, nj, (d + 2) % 4] = False
-        stack_i[top], stack_j[top] = ci, cj
-        stack_i[top + 1], stack_j[top + 1] = ni, nj
-        top += 2
-    return walls, solution, n_solution
-
-
-def _mt_words(seed: int, count: int) -> np.ndarray:
-    """The first ``count`` 32-bit outputs of ``random.Random(seed)``."""
-    bits = random.Random(seed).getrandbits(32 * count)
-    return np.frombuffer(bits.to_bytes(4 * count, "little"), dtype="<u4").astype(np.uint32)
 
 
 def carve(
     seed: int, width: int, height: int, start: Cell, end: Cell
 ) -> tuple[np.ndarray, list[Cell]]:
-    """The reference's depth-first maze for ``seed``: ``(walls, solution)``."""
-    # Each carving step draws ~2 words on average (rejection sampling); the
-    # block is doubled in the (rare) case it runs out.
-    count = 4 * width * height + 64
-    while True:
-        walls, solution, n_solution = _carve(
-            _mt_words(seed, count), width, height, *start, *end, _OFFSET_I, _OFFSET_J
-        )
-        if n_solution >= 0:
-            return walls, list(map(tuple, solution[:n_solution].tolist()))
-        count *= 2
+    """The reference's depth-first maze for ``seed``: ``(walls, solution)`` (§3.2)."""
+    rng = random.Random(seed)
+    walls = np.ones((width, height, 4), dtype=bool)
+    stack = [start]
+    visited = {start}
+    solution: list[Cell] = []
+    while stack:
+        if stack[-1] == end:
+            solution = list(stack)
+        current = stack.pop()
+        neighbours = [
+            (d, (current[0] + di, current[1] + dj))
+            for d, (di, dj) in enumerate(OFFSETS)
+            if 0 <= current[0] + di < width
+            and 0 <= current[1] + dj < height
+            and (current[0] + di, current[1] + dj) not in visited
+        ]
+        if neighbours:
+            d, cell = rng.choice(neighbours)
+            visited.add(cell)
+            _set_wall(walls, current, d, False)
+            stack += [current, cell]
+    return walls, solution
 
 
 def _rotate(

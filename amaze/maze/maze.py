@@ -2,7 +2,7 @@
 
 A :class:`Maze` is produced from a :class:`~amaze.maze.spec.MazeSpec` by
 :meth:`Maze.generate` (or :meth:`Maze.from_string`), which builds it from the
-parts :func:`amaze.maze.generation.generate` computes, and is immutable.
+parts :func:`amaze.maze.compiled_generation.generate` computes, and is immutable.
 Conventions (shared with the reference library and the ``amaze inspect --json``
 contract):
 
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from amaze.maze.compiled_generation import generate
 from amaze.maze.directions import Cell, Direction
-from amaze.maze.generation import generate
 from amaze.maze.signs import PlacedSign, SignKind
 from amaze.maze.spec import MazeSpec
 

@@ -33,9 +33,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
-from amaze.agents.trajectories import save_trajectory_png
-from amaze.evaluation.policy import record_episode
-from amaze.evaluation.protocol import Evaluator
 from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import ProgressLog, write_json
 
@@ -264,6 +261,12 @@ class Run(ABC):
 
     def finish(self) -> RunResult:
         """The final agent on the standard suite, its trajectories, then ``summary.json``."""
+        # Imported here: the evaluation and the pictures (Pillow) are needed only
+        # at the end of a run, and every command line would otherwise pay for them.
+        from amaze.agents.trajectories import save_trajectory_png
+        from amaze.evaluation.policy import record_episode
+        from amaze.evaluation.protocol import Evaluator
+
         agent = self.final_agent()
         robot = self.config.robot
         summary = Evaluator(robot).evaluate(agent).summary()

@@ -108,12 +108,13 @@ class MazeVectorEnv(VectorEnv):
         infos: dict[str, Any] = {}
         episodes = result.episodes
         if len(episodes):
+            agents = episodes.agents
             ended = np.zeros(self.num_envs, dtype=bool)
-            ended[episodes.agents] = True
-            final_obs = np.full(self.num_envs, None, dtype=object)
+            ended[agents] = True
+            final_obs = np.empty(self.num_envs, dtype=object)  # None everywhere
             finals = self._format(result.final_observations)
-            for index, agent in enumerate(episodes.agents):
-                final_obs[agent] = finals[index]
+            # one observation per ended agent (an object array of the rows of finals)
+            final_obs[agents] = np.fromiter(finals, dtype=object, count=len(agents))
             infos["final_obs"], infos["_final_obs"] = final_obs, ended
             final_info: dict[str, Any] = {}
             for key, values in (

@@ -7,9 +7,10 @@ time slice (milliseconds, against some 30 µs for 4096 discrete agent-steps).
 Neither the batch size nor the load average (a one-minute mean, blind to a
 process started seconds ago) says which case holds now, so
 :class:`KernelChoice` measures: it times a few calls of each kernel, runs the
-faster, and checks the other again from time to time, sooner when the chosen
-one slows down. The kernels give identical results, so the choice changes how
-long a step takes, never what it returns.
+faster, and tries the other again from time to time (less often while it keeps
+losing), and at once when the chosen one slows down, to twice its time or past
+the other's last time. The kernels give identical results, so the choice
+changes how long a step takes, never what it returns.
 """
 
 from __future__ import annotations
@@ -25,13 +26,17 @@ TRIAL_CALLS = 3
 #: trial it loses, up to :data:`MAX_RECHECK_SECONDS`, and reset by a switch.
 RECHECK_SECONDS = 1.0
 MAX_RECHECK_SECONDS = 16.0
-#: The chosen kernel is tried against the other at once when its running time
-#: per call grows past this factor of the time it was chosen with.
+#: The other kernel is tried at once when the chosen one's running time per
+#: call grows past this factor of the time it was chosen with, or past this
+#: factor of the other's time when last tried (:data:`MARGIN`).
 SLOWDOWN = 2.0
+MARGIN = 1.1
 # weight of one call in the running time per call, and the most one call can
 # move it (a single call disturbed by an interrupt must not trigger a trial)
 _SMOOTHING = 0.125
 _MAX_JUMP = 4.0
+# calls of the chosen kernel whose median confirms a slowdown
+_RECENT = 5
 
 
 class KernelChoice:
@@ -67,7 +72,9 @@ class KernelChoice:
         self._trial: list[float] = []  # timed calls of the trial in progress
         self._trying = self.adaptive  # a trial is in progress
         self._running = 0.0  # smoothed seconds per call of the chosen kernel
-        self._limit = 0.0  # a trial starts at once when _running exceeds this
+        self._recent = [0.0] * _RECENT  # its last calls, a ring
+        self._next = 0  # where the ring's next call goes
+        self._limit = 0.0  # a trial starts at once when its calls take longer than this
         self._recheck = RECHECK_SECONDS
         self._next_trial = 0.0
 
@@ -83,13 +90,21 @@ class KernelChoice:
         if self._trying:
             self._try(parallel, seconds, now)
         else:
+            self._recent[self._next] = seconds
+            self._next = (self._next + 1) % _RECENT
             running = self._running
             running += _SMOOTHING * (min(seconds, _MAX_JUMP * running) - running)
             self._running = running
             if running > self._limit or now >= self._next_trial:
-                # the chosen kernel's cost is its running time now; try the other
-                self._cost[parallel] = running
-                self._start_trial(not parallel)
+                # the smoothed time says "slower" at once, the median of the last
+                # calls whether it lasts (a call or two disturbed by an interrupt
+                # or a page fault do not make a trend)
+                recent = sorted(self._recent)[_RECENT // 2]
+                if recent > self._limit or now >= self._next_trial:
+                    self._cost[parallel] = recent
+                    self._start_trial(not parallel)
+                else:
+                    self._running = recent
         return result
 
     def _start_trial(self, parallel: bool) -> None:
@@ -119,5 +134,7 @@ class KernelChoice:
         self.parallel = best
         self._trying = False
         self._running = self._cost[best]
-        self._limit = SLOWDOWN * self._running
+        self._recent = [self._running] * _RECENT
+        other = serial_cost if best else parallel_cost
+        self._limit = min(SLOWDOWN * self._running, MARGIN * other)
         self._next_trial = now + self._recheck

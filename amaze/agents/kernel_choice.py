@@ -26,9 +26,9 @@ TRIAL_CALLS = 3
 #: trial it loses, up to :data:`MAX_RECHECK_SECONDS`, and reset by a switch.
 RECHECK_SECONDS = 1.0
 MAX_RECHECK_SECONDS = 16.0
-#: The other kernel is tried at once when the chosen one's running time per
-#: call grows past this factor of the time it was chosen with, or past this
-#: factor of the other's time when last tried (:data:`MARGIN`).
+#: The other kernel is tried at once when the chosen one's calls take longer
+#: than ``SLOWDOWN`` times the time it was chosen with, or ``MARGIN`` times the
+#: other's time when last tried.
 SLOWDOWN = 2.0
 MARGIN = 1.1
 # weight of one call in the running time per call, and the most one call can

@@ -19,12 +19,18 @@ the first one of the new episode, the last one of the old episode is in
 The hot loops are numba kernels. Per-agent state is one int32 row and one
 float64 row per agent. A discrete step reads few bytes: the agent's global
 cell and arrival code (0 at the start, else ``1 + d`` for the side ``d``
-leading back to the previous cell) give the move in the neighbour table and
-the observation directly. Continuous robots keep their float position and
+leading back to the previous cell) give the move in the neighbour table (int32)
+and the observation: the cell's row of 8 floats, copied in one vector move,
+and the 0.5 mark on the arrival side. The step does not branch on what a random
+policy makes a coin flip (a wall or not, a backward step or not): bit masks
+select the outcome, as a mispredicted branch per agent cost more than the rest
+of the step; only the end of an episode, rare, branches, against a per-maze
+deadline in whole steps. Continuous robots keep their float position and
 velocity and their current and previous cells. A kernel validates the actions
 before touching any state and lists the episodes that ended in compact
 buffers, so that :meth:`BatchEngine.step` does little besides allocating the
-arrays it returns.
+four arrays it returns; a step in which no episode ended shares one read-only
+set of empty arrays for the rest (nothing in them can change).
 
 Continuous actions follow :mod:`amaze.agents.actions`: finite accelerations are
 clipped to [-1, 1], a NaN or an infinity is refused (:class:`~amaze.errors.ActionError`,
@@ -38,14 +44,17 @@ change nothing but the one case where the reference indexed outside the maze
 too: a robot at full speed against the east or north border lands exactly on
 the border line. The guards cost a few comparisons per agent-step.
 
-Kernels come in a serial and a parallel (``prange``) version. A parallel step
-pays a thread start-up and a barrier on every call, which a small batch does
-not win back, and it stalls for a scheduler time slice (milliseconds) whenever
-a worker thread waits for a core that another process holds: on a busy
-machine a parallel step can be ten times slower than a serial one. So by
-default the parallel kernels run large enough batches on a machine with idle
-cores, and the serial ones everything else (``BatchEngine(parallel=...)``
-decides otherwise).
+Kernels come in a serial and a parallel (``prange``) version, and give
+identical results. A parallel step pays a thread start-up and a barrier on
+every call, which a small batch does not win back, and it stalls for a
+scheduler time slice (milliseconds) whenever a worker thread waits for a core
+that another process holds: on a shared machine a parallel step can be ten to a
+hundred times slower than a serial one, and the load can change at any time.
+So by default an engine with enough work per step (and numba with several
+threads) times both versions on its own calls and runs the faster, trying the
+other again from time to time and at once when the chosen one slows down
+(:class:`~amaze.agents.kernel_choice.KernelChoice`); smaller batches run the
+serial kernels. ``BatchEngine(parallel=True/False)`` fixes the choice.
 """
 
 from __future__ import annotations
@@ -59,6 +68,7 @@ import numba
 import numpy as np
 
 from amaze.agents.actions import continuous_actions, non_finite_actions_message
+from amaze.agents.kernel_choice import KernelChoice
 from amaze.agents.rewards import (
     BACKWARD_PENALTY,
     COLLISION_PENALTY,
@@ -99,9 +109,11 @@ _N_ISTATE = 10
 # per-agent floats, float64 (n_agents, 5): position, velocity, cumulative reward
 _X, _Y, _VX, _VY, _RET = range(5)
 _N_FSTATE = 5
-# per-maze integers, int64 (n_mazes, 10): cell offset, size, start and end as
-# local (i, j) and as global cells, path length
-_OFF, _W, _H, _SI, _SJ, _EI, _EJ, _L, _START, _END = range(10)
+# per-maze integers, int64 (n_mazes, 11): cell offset, size, start and end as
+# local (i, j), path length, start and end as global cells, and the deadline in
+# whole steps (``ceil`` of the float deadline: for an integer step count ``t``,
+# ``t >= deadline`` and ``t >= ceil(deadline)`` agree)
+_OFF, _W, _H, _SI, _SJ, _EI, _EJ, _L, _START, _END, _DEADLINE_STEPS = range(11)
 # per-maze floats, float64 (n_mazes, 2)
 _DEADLINE, _FINISH = range(2)
 # episode statistics of the ended episodes, int64 (5, n_agents), compact
@@ -126,9 +138,9 @@ _ACC_SCALE = ACCELERATION_SCALE
 _DT_CONTINUOUS = 0.1
 _MIN_SPEED = min(0.01, ACCELERATION_SCALE / 2)
 
-#: The parallel kernels are chosen by default from this much work per step
-#: (agents times the relative cost of an agent-step, ``_WORK_PER_AGENT``): some
-#: 50 µs of serial work, against a thread start-up and barrier of about 10 µs.
+#: The engine tries its parallel kernels from this much work per step (agents
+#: times the relative cost of an agent-step, ``_WORK_PER_AGENT``): some 30 µs of
+#: serial work, against a thread start-up and barrier of about 10 µs.
 _PARALLEL_MIN_WORK = 4096
 _WORK_PER_AGENT = {"discrete": 1, "hybrid": 8, "continuous": 16}
 
@@ -287,33 +299,36 @@ def _check_continuous(actions, ended, auto_reset):
 def _grid_step(k, a, ist, fst, mint, mflt, neighbours, rewards, term, trunc):
     """One discrete move of agent ``k`` (§4.3, §4.5); True when its episode ended.
 
+    Whether the move hits a wall, and whether it steps back into the cell just
+    left, are coin flips for a random policy, so the move is computed without
+    branching on them: ``blocked`` is -1 behind a wall and 0 otherwise, and
+    selects between old and new values with bit masks (a branch there was
+    mispredicted for every other agent, which cost more than the rest of the
+    step). Only the end of an episode, rare, branches.
+
     The reward is summed in the reference's order (collision, time step,
-    finish, backward step); adding a 0.0 term is exact, so the float is the
-    reference's.
+    finish, backward step). A penalty that does not apply is added as a signed
+    zero (``-0.2 * 0``), which leaves the float exactly as the reference's.
     """
     g = ist[k, _CELL]
-    target = neighbours[_u(g), _u(a)]
     arrival = ist[k, _ARR]
-    penalty = 0.0
-    backward = 0.0
-    if target < 0:  # a wall: no move, the arrival side stays
-        target = g
-        penalty = _COLLISION
-        ist[k, _COLL] += 1
-    else:
-        if arrival == a + 1:  # back into the cell just left
-            backward = _BACKWARD
-            ist[k, _BACK] += 1
-        ist[k, _ARR] = ((a + 2) & 3) + 1
-        ist[k, _CELL] = target
+    target = neighbours[_u(g), _u(a)]
+    blocked = target >> 31  # -1 behind a wall (target -1), else 0
+    cell = target + ((g - target) & blocked)  # a wall: no move
+    turned = ((a + 2) & 3) + 1  # the arrival code after moving through side a
+    backward = numba.int64(arrival == a + 1) & (blocked + 1)  # back into the cell just left
+    ist[k, _CELL] = cell
+    ist[k, _ARR] = turned + ((arrival - turned) & blocked)  # a wall: the arrival side stays
+    ist[k, _COLL] -= blocked
+    ist[k, _BACK] += backward
     m = _u(ist[k, _MAZE])
     tk = ist[k, _T]
-    reward = penalty + -1.0
-    success = target == mint[m, _END]
-    deadline = mflt[m, _DEADLINE]
+    deadline = mint[m, _DEADLINE_STEPS]
+    success = cell == mint[m, _END]
+    reward = _COLLISION * -blocked + -1.0
     if success or tk >= deadline:
         reward += mflt[m, _FINISH]
-    reward += backward
+    reward += _BACKWARD * backward
     tk += 1
     ist[k, _T] = tk
     fst[k, _RET] += reward
@@ -321,7 +336,7 @@ def _grid_step(k, a, ist, fst, mint, mflt, neighbours, rewards, term, trunc):
     failure = tk >= deadline
     term[k] = success
     trunc[k] = failure
-    return success or failure
+    return success | failure
 
 
 @numba.njit(cache=True, inline="always")
@@ -333,8 +348,10 @@ def _observe_discrete(k, out, ist, rows):
     its slot holds 0 there): a fifth of the full table, so that it stays in cache.
     """
     g = _u(ist[k, _CELL])
-    for s in range(8):
-        out[k, s] = rows[g, s]
+    r0, r1, r2, r3 = rows[g, 0], rows[g, 1], rows[g, 2], rows[g, 3]
+    r4, r5, r6, r7 = rows[g, 4], rows[g, 5], rows[g, 6], rows[g, 7]
+    out[k, 0], out[k, 1], out[k, 2], out[k, 3] = r0, r1, r2, r3
+    out[k, 4], out[k, 5], out[k, 6], out[k, 7] = r4, r5, r6, r7
     arrival = ist[k, _ARR]
     if arrival > 0:
         out[k, arrival - 1] = 0.5
@@ -806,7 +823,11 @@ class EndedEpisodes:
 
 @dataclass(frozen=True)
 class StepResult:
-    """What :meth:`BatchEngine.step` returns (all arrays are fresh).
+    """What :meth:`BatchEngine.step` returns.
+
+    Its arrays are fresh, the caller's to keep or change, except the empty
+    ones of a step in which no episode ended (``final_observations`` and those
+    of ``episodes``): they are shared between such steps, and read-only.
 
     ``observations`` (n, ...): the observation of every agent after the step
     (the first of its new episode for an agent that was auto-reset);
@@ -829,17 +850,27 @@ class StepResult:
         return self.terminated | self.truncated
 
 
+def threads_may_pay_off(work: int, min_work: int = _PARALLEL_MIN_WORK) -> bool:
+    """Whether multi-threaded numba kernels can beat serial ones at ``work`` per call at all.
+
+    They need several numba threads and enough work (at least ``min_work``, in
+    the caller's unit) to amortise a thread start-up and barrier per call.
+    Whether they do beat them depends on the machine's load at the time; the
+    engine finds out by timing both (:class:`~amaze.agents.kernel_choice.KernelChoice`).
+    """
+    return numba.get_num_threads() >= 2 and work >= min_work
+
+
 def threads_pay_off(work: int, min_work: int = _PARALLEL_MIN_WORK) -> bool:
     """Whether multi-threaded numba kernels are the better default for ``work`` per call.
 
-    They need enough work (at least ``min_work``, in the caller's unit) to
-    amortise a thread start-up and barrier per call, and idle cores: while
-    other processes keep the cores busy (by the 1-minute load average, which
-    counts this process too), a worker thread waits for a time slice at every
-    barrier. The engine and the evolution package's batched policies decide
-    with this one rule.
+    :func:`threads_may_pay_off`, and idle cores: while other processes keep the
+    cores busy (by the 1-minute load average, which counts this process too),
+    a worker thread waits for a time slice at every barrier. The evolution
+    package's batched policies decide once with this rule; the engine, whose
+    steps are shorter, times both kernels instead.
     """
-    if numba.get_num_threads() < 2 or work < min_work:
+    if not threads_may_pay_off(work, min_work):
         return False
     try:
         load = os.getloadavg()[0]
@@ -911,6 +942,12 @@ def _build(cls: type[_Dataclass], **fields: object) -> _Dataclass:
     return instance
 
 
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """``array``, made read-only: an empty result shared by many steps."""
+    array.flags.writeable = False
+    return array
+
+
 class BatchEngine:
     """``n_agents`` agents of one robot kind in a list of mazes, stepped together.
 
@@ -927,10 +964,11 @@ class BatchEngine:
     :func:`~amaze.agents.rewards.check_deadline_factor`; both are checked before
     anything is allocated or generated (:class:`~amaze.errors.OptionError`).
 
-    ``parallel`` chooses the multi-threaded kernels; by default (``None``) they
-    run batches large enough for threads to pay off when numba has several
-    threads and the machine idle cores (see the module docstring). Both kernel
-    families give identical results.
+    ``parallel`` True or False fixes the kernel family (multi-threaded or
+    serial); by default (``None``) an engine whose batch is large enough for
+    threads to pay off, when numba has several threads, times both families
+    and runs the faster (:attr:`kernel_choice`, see the module docstring).
+    Both give identical results.
 
     ``tables`` are the mazes' compiled tables when the caller has them already
     (:func:`~amaze.agents.tables.compile_mazes` of the same mazes, robot and
@@ -984,6 +1022,7 @@ class BatchEngine:
                     t.path_length,
                     t.start,
                     t.end,
+                    np.ceil(t.deadline).astype(np.int64),
                 ],
                 axis=1,
             ).astype(np.int64)
@@ -1001,25 +1040,45 @@ class BatchEngine:
         self._ep_ret = np.zeros(n, dtype=np.float64)
         self._ep_success = np.zeros(n, dtype=np.bool_)
         self._final = np.zeros(self._obs_shape, dtype=self._obs_dtype)
-        if parallel is None:
-            parallel = threads_pay_off(n * _WORK_PER_AGENT[self.kind])
-        self.parallel = bool(parallel)
+        if parallel is None and not threads_may_pay_off(n * _WORK_PER_AGENT[self.kind]):
+            parallel = False
         if self.kind == "discrete":
-            kernel = _step_discrete_parallel if self.parallel else _step_discrete
+            kernels = (_step_discrete, _step_discrete_parallel)
             self._tables_args = (t.neighbours, np.ascontiguousarray(t.discrete_obs[:, 0]))
         elif self.kind == "hybrid":
-            kernel = _step_hybrid_parallel if self.parallel else _step_hybrid
+            kernels = (_step_hybrid, _step_hybrid_parallel)
             self._tables_args = (t.neighbours, t.tiles)
         else:
-            kernel = _step_continuous_parallel if self.parallel else _step_continuous
+            kernels = (_step_continuous, _step_continuous_parallel)
             self._tables_args = (t.walls, t.canvas, t.canvas_offset)
-        self._kernel = kernel
+        #: The step kernel: serial or parallel, chosen by timing unless ``parallel`` says which.
+        self.kernel_choice = KernelChoice(*kernels, parallel)
+        # what a step in which no episode ended returns besides its four arrays
+        no_ints = _read_only(np.zeros((_N_EP_INT, 0), dtype=np.int64))
+        self._no_episodes = _build(
+            EndedEpisodes,
+            agents=no_ints[_EP_AGENT],
+            cumulative_reward=_read_only(np.zeros(0, dtype=np.float64)),
+            steps=no_ints[_EP_STEPS],
+            collisions=no_ints[_EP_COLL],
+            backsteps=no_ints[_EP_BACK],
+            success=_read_only(np.zeros(0, dtype=np.bool_)),
+            path_length=no_ints[_EP_LEN],
+            dt=self.dt,
+            deadline_factor=self.deadline_factor,
+        )
+        self._no_final = _read_only(np.zeros((0, *self.observation_shape), self._obs_dtype))
         if assignment is None:
             assignment = np.arange(n) % len(self.mazes)
         self._ist[:, _MAZE] = self._check_assignment(assignment, n)
         self.reset()
 
     # -- description ----------------------------------------------------------
+
+    @property
+    def parallel(self) -> bool:
+        """Whether the next step runs the parallel kernel (see :attr:`kernel_choice`)."""
+        return self.kernel_choice.parallel
 
     @property
     def observation_shape(self) -> tuple[int, ...]:
@@ -1141,13 +1200,23 @@ class BatchEngine:
         rewards = np.empty(n, dtype=np.float64)
         term = np.empty(n, dtype=np.bool_)
         trunc = np.empty(n, dtype=np.bool_)
-        count = self._kernel(
+        count = self.kernel_choice(
             a, self._ist, self._fst, self._ended, self._mint, self._mflt, *self._tables_args,
             self.auto_reset,
             obs, rewards, term, trunc, self._ep_int, self._ep_ret, self._ep_success, self._final,
         )  # fmt: skip
-        if count < 0:
-            self._refuse(count, a)
+        if count <= 0:
+            if count < 0:
+                self._refuse(count, a)
+            return _build(
+                StepResult,
+                observations=obs,
+                rewards=rewards,
+                terminated=term,
+                truncated=trunc,
+                final_observations=self._no_final,
+                episodes=self._no_episodes,
+            )
         ints = self._ep_int[:, :count].copy()
         episodes = _build(
             EndedEpisodes,

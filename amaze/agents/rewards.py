@@ -167,7 +167,40 @@ def pretty_rewards(
     worst = scheme.timestep + min(scheme.backward, scheme.collision)
     r_min = scheme.deadline_factor * length * worst / scheme.dt
     values = 2.0 * (np.asarray(cumulative_reward, dtype=np.float64) - r_min) / (length - r_min)
-    return np.array([round(v, 3) for v in (values - 1.0).tolist()], dtype=np.float64)
+    return round_like_python(values - 1.0, 3)
+
+
+def round_like_python(values: np.ndarray, decimals: int) -> np.ndarray:
+    """Python's ``round(v, decimals)`` of every value: the same floats, in array code.
+
+    ``numpy.round`` differs from it for some values (it rounds ``v * 10**decimals``,
+    which carries a rounding error, instead of ``v``), and a loop of ``round``
+    costs a third of a microsecond per value. Here ``rint(v * 10**d) / 10**d`` is
+    exact (a correctly rounded quotient of two exact floats is the float nearest
+    the decimal, as ``round`` gives) wherever the product's error cannot change
+    which integer is nearest: everywhere but within a few ulps of a half-way
+    point, and for non-finite or huge values, which go to ``round`` itself.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    if values.size < _FEW_VALUES:
+        return np.array([round(v, decimals) for v in values.tolist()], dtype=np.float64)
+    scale = 10.0**decimals
+    scaled = values * scale
+    nearest = np.rint(scaled)
+    result = nearest / scale
+    with np.errstate(invalid="ignore"):  # inf - inf: NaN, not sure
+        margin = np.abs(np.abs(scaled - nearest) - 0.5)
+    # the product's error is at most half an ulp, below |scaled| * 2**-52; from
+    # |scaled| = 2**47 on, nothing is sure (nor are NaN and infinities)
+    sure = margin > np.abs(scaled) * 2.0**-48
+    if not sure.all():
+        for k in np.flatnonzero(~sure).tolist():
+            result.flat[k] = round(float(values.flat[k]), decimals)
+    return result
+
+
+# below this many values, a loop of round is faster than array code
+_FEW_VALUES = 20
 
 
 def paper_rewards(

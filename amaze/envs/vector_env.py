@@ -18,7 +18,9 @@ must fit in :data:`~amaze.agents.engine.MAX_ENGINE_BYTES`, 16 GiB),
 environment renders nothing) and ``reset`` takes no options (None or an empty
 dict). Continuous actions are clipped to [-1, 1] when finite and refused when
 they hold a NaN or an infinity (:class:`~amaze.errors.ActionError` naming the
-agents), as in the engine.
+agents), as in the engine. ``parallel`` (None, True or False) is the engine's:
+by default it times its serial and multi-threaded kernels and runs the faster,
+which changes how fast a step is, never what it returns.
 """
 
 from __future__ import annotations
@@ -60,7 +62,10 @@ class MazeVectorEnv(VectorEnv):
         robot: Robot | str = "DD",
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         render_mode: str | None = None,
+        parallel: bool | None = None,
     ) -> None:
+        if parallel is not None and not isinstance(parallel, bool):
+            raise OptionError(f"parallel {parallel!r} is not one of None, True, False")
         if render_mode is not None:
             raise OptionError(
                 f"render_mode {render_mode!r}: the vector environment renders nothing"
@@ -73,8 +78,9 @@ class MazeVectorEnv(VectorEnv):
         self.num_envs = num_envs
         self.render_mode = None
         self.engine = BatchEngine(
-            self.mazes, self.robot, num_envs, deadline_factor=deadline_factor, auto_reset=True
-        )
+            self.mazes, self.robot, num_envs, deadline_factor=deadline_factor, auto_reset=True,
+            parallel=parallel,
+        )  # fmt: skip
         self.single_observation_space = observation_space(self.robot)
         self.single_action_space = action_space(self.robot)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
@@ -102,12 +108,13 @@ class MazeVectorEnv(VectorEnv):
         infos: dict[str, Any] = {}
         episodes = result.episodes
         if len(episodes):
+            agents = episodes.agents
             ended = np.zeros(self.num_envs, dtype=bool)
-            ended[episodes.agents] = True
-            final_obs = np.full(self.num_envs, None, dtype=object)
+            ended[agents] = True
+            final_obs = np.empty(self.num_envs, dtype=object)  # None everywhere
             finals = self._format(result.final_observations)
-            for index, agent in enumerate(episodes.agents):
-                final_obs[agent] = finals[index]
+            # one observation per ended agent (an object array of the rows of finals)
+            final_obs[agents] = np.fromiter(finals, dtype=object, count=len(agents))
             infos["final_obs"], infos["_final_obs"] = final_obs, ended
             final_info: dict[str, Any] = {}
             for key, values in (

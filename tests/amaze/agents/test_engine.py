@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from amaze.agents.engine import BatchEngine, EpisodeEndedError
+from amaze.agents.kernel_choice import KernelChoice
 from amaze.agents.tables import compile_mazes
 from amaze.maze.maze import Maze
 
@@ -445,17 +446,100 @@ def test_parallel_kernels_match_serial(robot: str, auto_reset: bool) -> None:
     assert n_episodes > 0
 
 
-def test_parallel_kernels_are_chosen_for_large_batches_on_idle_cores(monkeypatch) -> None:
+def test_large_batches_choose_their_kernels_by_timing(monkeypatch) -> None:
     monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
-    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
-    monkeypatch.setattr(os, "getloadavg", lambda: (0.9, 0.9, 0.9))  # this process alone
-    assert BatchEngine(["M4_5x5_U"], "DD", 4096).parallel
-    assert BatchEngine(["M4_5x5_U"], "CC", 256).parallel
-    assert not BatchEngine(["M4_5x5_U"], "DD", 1024).parallel  # too little work
-    assert not BatchEngine(["M4_5x5_U"], "DD", 4096, parallel=False).parallel
-    monkeypatch.setattr(os, "getloadavg", lambda: (2.7, 2.5, 2.0))  # cores already busy
-    assert not BatchEngine(["M4_5x5_U"], "DD", 4096).parallel
-    assert BatchEngine(["M4_5x5_U"], "DD", 4, parallel=True).parallel
+    monkeypatch.setattr(os, "getloadavg", lambda: (2.7, 2.5, 2.0))  # ignored by the engine
+    assert BatchEngine(["M4_5x5_U"], "DD", 4096).kernel_choice.adaptive
+    assert BatchEngine(["M4_5x5_U"], "CC", 256).kernel_choice.adaptive
+    small = BatchEngine(["M4_5x5_U"], "DD", 1024)  # too little work for threads
+    assert not small.kernel_choice.adaptive and not small.parallel
+    forced = BatchEngine(["M4_5x5_U"], "DD", 4096, parallel=False)
+    assert not forced.kernel_choice.adaptive and not forced.parallel
+    tiny = BatchEngine(["M4_5x5_U"], "DD", 4, parallel=True)
+    assert not tiny.kernel_choice.adaptive and tiny.parallel
     monkeypatch.setattr(numba, "get_num_threads", lambda: 1)
-    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
-    assert not BatchEngine(["M4_5x5_U"], "CC", 4096).parallel
+    alone = BatchEngine(["M4_5x5_U"], "CC", 4096)
+    assert not alone.kernel_choice.adaptive and not alone.parallel
+
+
+class _RandomClock:
+    """A clock whose every reading moves on by a random time, up to 3 s.
+
+    An engine timing its kernels with it sees random costs and tries the other
+    kernel after almost every decision: its choice flips back and forth.
+    """
+
+    def __init__(self, seed: int) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        self.now += float(self.rng.uniform(0.0, 3.0))
+        return self.now
+
+
+@pytest.mark.parametrize("robot", ["DD", "H11", "CC11"])
+@pytest.mark.parametrize("auto_reset", [True, False])
+def test_results_do_not_depend_on_the_kernel_choice(robot: str, auto_reset: bool) -> None:
+    """An engine switching between its kernels at random steps as one that never does."""
+    n_agents, steps = 12, 300 if robot != "CC11" else 200
+    engines = [
+        BatchEngine(
+            BATCH_MAZES, robot, n_agents, auto_reset=auto_reset, deadline_factor=1.0,
+            parallel=False,
+        )
+        for _ in range(2)
+    ]  # fmt: skip
+    switching = engines[1]
+    switching.kernel_choice = KernelChoice(
+        *switching.kernel_choice.kernels, None, clock=_RandomClock(7)
+    )
+    actions = _random_actions(robot, steps, n_agents, seed=11)
+    n_episodes = 0
+    for t in range(steps):
+        serial, either = (e.step(actions[t]) for e in engines)
+        for name in ("observations", "rewards", "terminated", "truncated", "final_observations"):
+            np.testing.assert_array_equal(getattr(serial, name), getattr(either, name), name)
+        for f in dataclasses.fields(serial.episodes):
+            a, b = getattr(serial.episodes, f.name), getattr(either.episodes, f.name)
+            np.testing.assert_array_equal(a, b, f.name)
+        n_episodes += len(serial.episodes)
+        if not auto_reset and len(serial.episodes):
+            for engine in engines:
+                engine.reset(serial.episodes.agents)
+    assert n_episodes > 0
+    assert min(switching.kernel_choice.calls) > steps // 10 and switching.kernel_choice.switches > 5
+    np.testing.assert_array_equal(engines[0].cells, switching.cells)
+    np.testing.assert_array_equal(engines[0].cumulative_rewards, switching.cumulative_rewards)
+
+
+def test_steps_without_ended_episodes_share_read_only_empty_results() -> None:
+    """Nothing a step returns can change under a caller who keeps it."""
+    maze = Maze.from_string("M4_5x5_U")
+    bump = int(np.flatnonzero(maze.walls[maze.start])[0])
+    engine = BatchEngine([maze], "DD", 2)
+    quiet = [engine.step(np.array([bump, bump])) for _ in range(3)]
+    for result in quiet:
+        assert len(result.episodes) == 0 and result.final_observations.shape == (0, 8)
+        for array in (result.final_observations, *vars(result.episodes).values()):
+            if isinstance(array, np.ndarray):
+                assert array.size == 0 and not array.flags.writeable
+        for array in (result.observations, result.rewards, result.terminated):
+            assert array.flags.writeable  # the arrays with content are the caller's
+        with pytest.raises(ValueError):
+            result.episodes.agents[...] = 1
+    while True:
+        ended = engine.step(np.array([bump, bump]))
+        if len(ended.episodes):
+            break
+    again = engine.step(np.array([bump, bump]))
+    assert len(ended.episodes) == 2 and ended.final_observations.shape == (2, 8)
+    assert ended.episodes.agents.flags.writeable and ended.final_observations.flags.writeable
+    kept = ended.final_observations.copy(), ended.episodes.cumulative_reward.copy()
+    while not len(again.episodes):
+        again = engine.step(np.array([bump, bump]))
+    assert not np.shares_memory(again.final_observations, ended.final_observations)
+    assert not np.shares_memory(again.episodes.agents, ended.episodes.agents)
+    np.testing.assert_array_equal(ended.final_observations, kept[0])
+    np.testing.assert_array_equal(ended.episodes.cumulative_reward, kept[1])
+    assert all(len(q.episodes) == 0 for q in quiet)

@@ -12,7 +12,7 @@ from amaze.envs.vector_env import MazeVectorEnv
 MAZES = ["M1_5x5_U", "M2_7x6_C1_l.25_L.25_t.5_T.5", "M3_4x9_NE_C1"]
 
 
-def make_vec(num_envs: int, robot: str, maze=MAZES):
+def make_vec(num_envs: int, robot: str, maze=MAZES, **options):
     return gymnasium.make_vec(
         "AMaze-v0",
         num_envs=num_envs,
@@ -20,6 +20,7 @@ def make_vec(num_envs: int, robot: str, maze=MAZES):
         maze=maze,
         robot=robot,
         deadline_factor=1.5,
+        **options,
     )
 
 
@@ -73,3 +74,37 @@ def test_bad_arguments():
         MazeVectorEnv(2, ["M1_5x5", "M2_q"])
     with pytest.raises(ValueError):
         MazeVectorEnv(2, [])
+    with pytest.raises(ValueError, match="parallel 'yes'"):
+        MazeVectorEnv(2, "M1_5x5", parallel="yes")
+
+
+def test_kernel_families_give_the_same_steps_and_kept_results_stay_put():
+    """``parallel`` changes which kernels run, not what a step returns; a step's arrays are
+    the caller's: later steps leave them as they were."""
+    envs = [make_vec(9, "DD", parallel=parallel) for parallel in (False, True, None)]
+    assert [env.unwrapped.engine.parallel for env in envs[:2]] == [False, True]
+    firsts = [env.reset()[0] for env in envs]
+    actions = np.random.default_rng(4).integers(0, 4, size=(200, 9))
+    kept = []
+    ended = 0
+    for t in range(200):
+        results = [env.step(actions[t]) for env in envs]
+        for other in results[1:]:
+            for a, b in zip(results[0][:4], other[:4], strict=True):
+                np.testing.assert_array_equal(a, b)
+            assert results[0][4].keys() == other[4].keys()
+        if results[0][4]:
+            ended += 1
+            for env_result in results[1:]:
+                np.testing.assert_array_equal(
+                    results[0][4]["_final_obs"], env_result[4]["_final_obs"]
+                )
+                for key, column in results[0][4]["final_info"].items():
+                    np.testing.assert_array_equal(column, env_result[4]["final_info"][key])
+        kept.append((results[0], [np.copy(x) for x in results[0][:4]]))
+    assert ended > 0
+    for result, copies in kept:
+        for array, copy in zip(result[:4], copies, strict=True):
+            np.testing.assert_array_equal(array, copy)
+    for first, env in zip(firsts, envs, strict=True):
+        np.testing.assert_array_equal(first, env.reset()[0])

@@ -31,6 +31,7 @@ from evolution.neat.compile import (
     ARRAY_KEYS,
     GenomePopulation,
     genome_to_arrays,
+    genomes_to_arrays,
     policy_from_arrays,
     robot_io,
 )
@@ -81,6 +82,7 @@ __all__ = [
     "compatibility_distance",
     "crossover",
     "genome_to_arrays",
+    "genomes_to_arrays",
     "mutate",
     "mutate_activation",
     "mutate_add_connection",

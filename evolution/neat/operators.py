@@ -55,32 +55,49 @@ SMALL_GENOME = 20
 # Mutations (all draw from ``random``)
 
 
-def _clip(value: float, bound: float) -> float:
-    return max(-bound, min(bound, value))
+# The operators run for every offspring of every generation: they read the
+# configuration and the ``random`` functions into locals once per call, which
+# changes neither the draws nor the arithmetic.
 
 
 def mutate_weights(genome: Genome, config: NeatConfig) -> None:
     """Perturb every connection weight (Gaussian), or replace it with ``weight_replace_rate``."""
-    for innovation in sorted(genome.connections):
-        gene = genome.connections[innovation]
-        if random.random() < config.weight_replace_rate:
-            gene.weight = random.gauss(0.0, config.weight_init_stdev)
+    draw, gauss = random.random, random.gauss
+    replace, init, power = (
+        config.weight_replace_rate,
+        config.weight_init_stdev,
+        config.weight_mutate_power,
+    )
+    bound = config.weight_max
+    connections = genome.connections
+    for innovation in sorted(connections):
+        gene = connections[innovation]
+        if draw() < replace:
+            weight = gauss(0.0, init)
         else:
-            gene.weight += random.gauss(0.0, config.weight_mutate_power)
-        gene.weight = _clip(gene.weight, config.weight_max)
+            weight = gene.weight + gauss(0.0, power)
+        gene.weight = max(-bound, min(bound, weight))
 
 
 def mutate_biases(genome: Genome, config: NeatConfig) -> None:
     """Perturb every output and hidden bias, or replace it with ``bias_replace_rate``."""
-    for node_id in sorted(genome.nodes):
-        node = genome.nodes[node_id]
+    draw, gauss = random.random, random.gauss
+    replace, init, power = (
+        config.bias_replace_rate,
+        config.bias_init_stdev,
+        config.bias_mutate_power,
+    )
+    bound = config.weight_max
+    nodes = genome.nodes
+    for node_id in sorted(nodes):
+        node = nodes[node_id]
         if node.kind == "input":
             continue
-        if random.random() < config.bias_replace_rate:
-            node.bias = random.gauss(0.0, config.bias_init_stdev)
+        if draw() < replace:
+            bias = gauss(0.0, init)
         else:
-            node.bias += random.gauss(0.0, config.bias_mutate_power)
-        node.bias = _clip(node.bias, config.weight_max)
+            bias = node.bias + gauss(0.0, power)
+        node.bias = max(-bound, min(bound, bias))
 
 
 def mutate_add_node(genome: Genome, tracker: InnovationTracker, config: NeatConfig) -> bool:
@@ -104,11 +121,8 @@ def mutate_add_node(genome: Genome, tracker: InnovationTracker, config: NeatConf
     return True
 
 
-def _descendants(genome: Genome, node: int) -> set[int]:
-    """``node`` and every node reachable from it through any connection gene."""
-    children: dict[int, list[int]] = {}
-    for gene in genome.connections.values():
-        children.setdefault(gene.in_node, []).append(gene.out_node)
+def _descendants(children: dict[int, list[int]], node: int) -> set[int]:
+    """``node`` and every node reachable from it (``children``: each node's targets)."""
     seen = {node}
     stack = [node]
     while stack:
@@ -127,16 +141,19 @@ def mutate_add_connection(genome: Genome, tracker: InnovationTracker, config: Ne
     not). Returns whether a connection was added (False when the genome is
     fully connected).
     """
-    targets = sorted(i for i, n in genome.nodes.items() if n.kind != "input")
+    nodes = genome.nodes
+    targets = sorted(i for i, n in nodes.items() if n.kind != "input")
     random.shuffle(targets)
+    children: dict[int, list[int]] = {}  # through any gene, enabled or not
+    parents: dict[int, list[int]] = {}
+    for gene in genome.connections.values():
+        children.setdefault(gene.in_node, []).append(gene.out_node)
+        parents.setdefault(gene.out_node, []).append(gene.in_node)
+    candidates = [i for i in sorted(nodes) if nodes[i].kind != "output"]
     for target in targets:
-        forbidden = _descendants(genome, target)
-        forbidden.update(g.in_node for g in genome.connections.values() if g.out_node == target)
-        sources = [
-            i
-            for i in sorted(genome.nodes)
-            if genome.nodes[i].kind != "output" and i not in forbidden
-        ]
+        forbidden = _descendants(children, target)
+        forbidden.update(parents.get(target, ()))
+        sources = [i for i in candidates if i not in forbidden]
         if sources:
             source = random.choice(sources)
             innovation = tracker.connection(source, target)
@@ -195,24 +212,32 @@ def crossover(first: Genome, second: Genome, config: NeatConfig) -> Genome:
     in-place ``mate`` operators it returns one new genome (invalid fitness).
     """
     fitter, other = (first, second) if not second.fitness > first.fitness else (second, first)
+    draw, disable = random.random, config.disable_inherit_rate
     child = Genome(fitter.n_inputs, fitter.n_outputs)
-    for node_id in sorted(fitter.nodes):
-        node = fitter.nodes[node_id]
-        match = other.nodes.get(node_id)
-        if node.kind != "input" and match is not None and random.random() < 0.5:
-            node = match
-        child.nodes[node_id] = NodeGene(node_id, node.kind, node.bias, node.activation)
-    for innovation in sorted(fitter.connections):
-        gene = fitter.connections[innovation]
-        match = other.connections.get(innovation)
-        enabled = gene.enabled
-        if match is not None:
-            if random.random() < 0.5:
-                gene = match
+    fitter_nodes, other_nodes, child_nodes = fitter.nodes, other.nodes, child.nodes
+    for node_id in sorted(fitter_nodes):
+        node = fitter_nodes[node_id]
+        if node.kind != "input":
+            match = other_nodes.get(node_id)
+            if match is not None and draw() < 0.5:
+                node = match
+        child_nodes[node_id] = NodeGene(node_id, node.kind, node.bias, node.activation)
+    fitter_genes, other_genes, child_genes = (
+        fitter.connections,
+        other.connections,
+        child.connections,
+    )
+    for innovation in sorted(fitter_genes):
+        own = fitter_genes[innovation]
+        match = other_genes.get(innovation)
+        if match is None:
+            gene, enabled = own, own.enabled
+        else:
+            gene = match if draw() < 0.5 else own
             enabled = True
-            if not (fitter.connections[innovation].enabled and match.enabled):
-                enabled = random.random() >= config.disable_inherit_rate
-        child.connections[innovation] = ConnectionGene(
+            if not (own.enabled and match.enabled):
+                enabled = draw() >= disable
+        child_genes[innovation] = ConnectionGene(
             innovation, gene.in_node, gene.out_node, gene.weight, enabled
         )
     return child

@@ -24,15 +24,22 @@ Two measurements:
 
 Policy-steps are the steps of the scored episodes (``PopulationResult.env_steps``).
 "Outside" is the share of a generation's time not spent playing episodes.
+Phases are medians over the generations; the throughput is also given over
+the whole window (all steps over all seconds), which counts the garbage
+collector's occasional full collections that medians leave out. Generations
+run with the set-up's objects frozen out of the collector, as a run's
+training does (:func:`amaze.runs.lifecycle.frozen_heap`); ``--gc-all``
+leaves them in.
 
 Usage: ``python benchmarks/bench_neat.py [--population 256] [--generations 40]
 [--warmup 10] [--mazes suite16 suite paper] [--threads auto|on|off] [--seed 0]
-[--e2e SECONDS]``
+[--gc-all] [--e2e SECONDS]``
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import json
 import statistics
@@ -49,6 +56,7 @@ import numba
 
 import evolution.neat.algorithm as neat_algorithm
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE, standard_suite
+from amaze.runs.lifecycle import frozen_heap
 from evolution.neat import NeatAlgorithm, NeatConfig
 from evolution.population import PopulationEvaluator
 
@@ -123,23 +131,46 @@ def generations(name: str, args: argparse.Namespace, parallel: bool | None) -> N
     timers = Timers()
     instrument(algorithm, timers)
     rows = []
-    for _ in range(args.generations):
-        timers.seconds.clear()
-        t0 = time.perf_counter()
-        genomes = algorithm.ask()
-        t1 = time.perf_counter()
-        policy = algorithm.population_policy(genomes)
-        policy.parallel = parallel
-        t2 = time.perf_counter()
-        result = evaluator.evaluate(policy)
-        t3 = time.perf_counter()
-        algorithm.tell(genomes, result.fitness)
-        t4 = time.perf_counter()
-        row = dict(timers.seconds)
-        row.update(ask=t1 - t0, compile=t2 - t1, evaluate=t3 - t2, total=t4 - t0)
-        row["tell other"] = (t4 - t3) - sum(row.get(c, 0.0) for c in COLUMNS[3:-1])
-        row["steps"] = result.env_steps
-        rows.append(row)
+    with contextlib.nullcontext() if args.gc_all else frozen_heap():
+        for _ in range(args.generations):
+            rows.append(_generation(algorithm, evaluator, timers, parallel))
+    report(name, args, evaluator, algorithm, rows, prepared)
+
+
+def _generation(
+    algorithm: NeatAlgorithm,
+    evaluator: PopulationEvaluator,
+    timers: Timers,
+    parallel: bool | None,
+) -> dict[str, float]:
+    """One generation, timed by phase."""
+    timers.seconds.clear()
+    t0 = time.perf_counter()
+    genomes = algorithm.ask()
+    t1 = time.perf_counter()
+    policy = algorithm.population_policy(genomes)
+    policy.parallel = parallel
+    t2 = time.perf_counter()
+    result = evaluator.evaluate(policy)
+    t3 = time.perf_counter()
+    algorithm.tell(genomes, result.fitness)
+    t4 = time.perf_counter()
+    row = dict(timers.seconds)
+    row.update(ask=t1 - t0, compile=t2 - t1, evaluate=t3 - t2, total=t4 - t0)
+    row["tell other"] = (t4 - t3) - sum(row.get(c, 0.0) for c in COLUMNS[3:-1])
+    row["steps"] = result.env_steps
+    return row
+
+
+def report(
+    name: str,
+    args: argparse.Namespace,
+    evaluator: PopulationEvaluator,
+    algorithm: NeatAlgorithm,
+    rows: list[dict[str, float]],
+    prepared: float,
+) -> None:
+    """Print the medians of the phases and the throughput of generations after the warm-up."""
     window = rows[args.warmup :]
     stats = algorithm.stats()
     print(
@@ -165,6 +196,13 @@ def generations(name: str, args: argparse.Namespace, parallel: bool | None) -> N
         f" (min-max overall {min(overall) / 1e6:.2f}-{max(overall) / 1e6:.2f} M);"
         f" outside evaluation {100 * statistics.median(outside):.1f} %"
         f" (median {statistics.median(r['steps'] for r in window):.0f} steps per generation)"
+    )
+    steps = sum(r["steps"] for r in window)
+    total = sum(r["total"] for r in window)
+    evaluation = sum(r["evaluate"] for r in window)
+    print(
+        f"  whole window: {steps / total / 1e6:.2f} M overall, {steps / evaluation / 1e6:.2f} M"
+        f" during evaluation, outside evaluation {100 * (1 - evaluation / total):.1f} %"
     )
 
 
@@ -206,6 +244,7 @@ def main(argv: list[str] | None = None) -> None:
         "--threads", choices=("auto", "on", "off"), default="auto",
         help="multi-threaded forward pass: by load (auto), always or never",
     )  # fmt: skip
+    parser.add_argument("--gc-all", action="store_true", help="freeze no object (see above)")
     parser.add_argument("--e2e", type=float, metavar="SECONDS", help="time amaze-evolve runs")
     args = parser.parse_args(argv)
     if not 0 <= args.warmup < args.generations:

@@ -22,13 +22,24 @@ folders"):
 
 Every file is written atomically (:mod:`amaze.runs.folder`), so a run killed at
 any moment leaves readable files behind and resumes from its last checkpoint.
+
+Training runs with the objects that exist when it starts (modules, compiled
+kernels, maze tables: over a hundred thousand) frozen out of Python's cyclic
+garbage collector (:func:`frozen_heap`). A training loop allocates many
+objects that live a few generations (genomes, episode results), which makes
+the collector run full collections often; each visited every object of the
+process and, in a NEAT-like run, the collector took an eighth of the
+training time. Freezing changes what the collector visits, never what the run
+computes.
 """
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import os
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -36,13 +47,28 @@ from typing import Any, ClassVar
 from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import ProgressLog, write_json
 
-__all__ = ["CONFIG_FILE", "LOG_FILE", "SUMMARY_FILE", "Run", "RunResult"]
+__all__ = ["CONFIG_FILE", "LOG_FILE", "SUMMARY_FILE", "Run", "RunResult", "frozen_heap"]
 
 CONFIG_FILE = "config.json"
 SUMMARY_FILE = "summary.json"
 #: What the process of a replicate prints (:mod:`amaze.runs.replicates`): it is
 #: opened before the run starts, so a folder holding only it counts as empty.
 LOG_FILE = "log.txt"
+
+
+@contextlib.contextmanager
+def frozen_heap() -> Iterator[None]:
+    """Keep the objects alive now out of the garbage collector's full collections, meanwhile.
+
+    :func:`gc.freeze` moves them to a generation the collector never visits
+    (they are not garbage: modules, compiled code, the run's set-up);
+    :func:`gc.unfreeze` gives them back at the end, even on an error.
+    """
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 @dataclass(frozen=True)
@@ -174,7 +200,8 @@ class Run(ABC):
         run.start()
         path.mkdir(parents=True, exist_ok=True)
         write_json(path / CONFIG_FILE, config.to_dict())
-        run.train(progress_bar)
+        with frozen_heap():
+            run.train(progress_bar)
         return run.finish()
 
     @classmethod
@@ -204,7 +231,8 @@ class Run(ABC):
                     " where the checkpoint is"
                 )
             run.progress.keep(lambda row: int(row[cls.position_field]) <= position)
-        run.train(progress_bar)
+        with frozen_heap():
+            run.train(progress_bar)
         return run.finish()
 
     @classmethod

@@ -7,8 +7,11 @@ enabled connections as a CSR list of (source, weight). Disabled connections
 and hidden nodes from which no output can be reached are left out: they do not
 change what the network computes.
 
-A population of P genomes concatenates those arrays with per-genome offsets
-into a :class:`GenomePopulation`, the population policy of the run loop: one
+:func:`genomes_to_arrays` gives the same arrays for a whole population in one
+compiled call (the graph work in numba; only reading the genes is Python), as
+compiling every generation of a run needs. A population of P genomes
+concatenates those arrays with per-genome offsets into a
+:class:`GenomePopulation`, the population policy of the run loop: one
 numba kernel call evaluates every agent of a batch, agent ``k`` using genome
 ``k // M`` where ``M = n_agents // P``. The same arrays are what an agent file
 stores (:func:`policy_from_arrays` reads them back, without pickle).
@@ -47,6 +50,7 @@ __all__ = [
     "ARRAY_KEYS",
     "GenomePopulation",
     "genome_to_arrays",
+    "genomes_to_arrays",
     "policy_from_arrays",
     "robot_io",
 ]
@@ -177,6 +181,187 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
         "n_connections": len(sources),
     }
     return arrays, architecture
+
+
+def genomes_to_arrays(genomes: Sequence[Any]) -> list[dict[str, np.ndarray]]:
+    """:func:`genome_to_arrays`'s arrays of many genomes (all of one robot), in one compiled call.
+
+    The same arrays, element for element; only the genes are read in Python
+    (enabled connections and non-input nodes), the graph work (nodes that
+    reach an output, topological order, CSR lists) is compiled. The arrays of
+    genome ``g`` are views into arrays shared by the population.
+    """
+    if not genomes:
+        return []
+    n_inputs, n_outputs = int(genomes[0].n_inputs), int(genomes[0].n_outputs)
+    nodes = [[n for n in g.nodes.values() if n.kind != "input"] for g in genomes]
+    edges = [[c for c in g.connections.values() if c.enabled] for g in genomes]
+    node_ptr = _offsets([len(n) for n in nodes])
+    edge_ptr = _offsets([len(e) for e in edges])
+    n_nodes, n_edges = int(node_ptr[-1]), int(edge_ptr[-1])
+    node_ids = np.fromiter((n.id for ns in nodes for n in ns), np.int64, n_nodes)
+    bias = np.fromiter((n.bias for ns in nodes for n in ns), np.float64, n_nodes)
+    codes = np.fromiter((_CODES[n.activation] for ns in nodes for n in ns), np.int64, n_nodes)
+    innovation = np.fromiter((c.innovation for es in edges for c in es), np.int64, n_edges)
+    source = np.fromiter((c.in_node for es in edges for c in es), np.int64, n_edges)
+    target = np.fromiter((c.out_node for es in edges for c in es), np.int64, n_edges)
+    weight = np.fromiter((c.weight for es in edges for c in es), np.float64, n_edges)
+    out = _compile_kernel(
+        n_inputs, n_outputs, node_ptr, node_ids, bias, codes,
+        edge_ptr, innovation, source, target, weight,
+    )  # fmt: skip
+    ok, sizes, counts, order, node_bias, node_act, indptr, sources, weights, outputs = out
+    if not ok:
+        raise ValueError("the genome's enabled connections form a cycle")
+    networks = []
+    n0 = e0 = 0
+    for g in range(len(genomes)):
+        n1, e1 = n0 + int(sizes[g]), e0 + int(counts[g])
+        start = n0 + g  # each genome's indptr has one more entry than its nodes
+        networks.append(
+            {
+                "node_ids": order[n0:n1],
+                "bias": node_bias[n0:n1],
+                "activation": node_act[n0:n1],
+                "indptr": indptr[start : start + n1 - n0 + 1],
+                "sources": sources[e0:e1],
+                "weights": weights[e0:e1],
+                "outputs": outputs[g],
+            }
+        )
+        n0, e0 = n1, e1
+    return networks
+
+
+def _offsets(sizes: list[int]) -> np.ndarray:
+    offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
+    np.cumsum(np.asarray(sizes, dtype=np.int64), out=offsets[1:])
+    return offsets
+
+
+@numba.njit(cache=True)
+def _compile_kernel(
+    n_inputs, n_outputs, node_ptr, node_ids, bias, codes, edge_ptr, innovation, source, target,
+    weight,
+):  # fmt: skip
+    """:func:`genome_to_arrays` of every genome (see :func:`genomes_to_arrays`).
+
+    Returns ``ok`` (False: a genome has a cycle), per genome its number of
+    evaluated nodes and connections, then the concatenated ``node_ids``,
+    ``bias``, ``activation``, ``indptr`` (one per genome, each starting at 0),
+    ``sources``, ``weights`` and the ``outputs`` ``(n_genomes, n_outputs)``.
+    """
+    n_genomes = node_ptr.shape[0] - 1
+    sizes = np.zeros(n_genomes, dtype=np.int64)
+    counts = np.zeros(n_genomes, dtype=np.int64)
+    order_all = np.empty(node_ids.shape[0], dtype=np.int64)
+    bias_all = np.empty(node_ids.shape[0], dtype=np.float64)
+    act_all = np.empty(node_ids.shape[0], dtype=np.int64)
+    indptr_all = np.zeros(node_ids.shape[0] + n_genomes, dtype=np.int64)
+    sources_all = np.empty(innovation.shape[0], dtype=np.int64)
+    weights_all = np.empty(innovation.shape[0], dtype=np.float64)
+    outputs_all = np.empty((n_genomes, n_outputs), dtype=np.int64)
+    n_out = e_out = 0
+    for g in range(n_genomes):
+        ids = node_ids[node_ptr[g] : node_ptr[g + 1]]
+        by_id = np.argsort(ids)
+        sorted_ids = ids[by_id]
+        m = ids.shape[0]
+        # this genome's enabled connections by innovation, grouped by target (CSR)
+        e0, e1 = edge_ptr[g], edge_ptr[g + 1]
+        edges = e0 + np.argsort(innovation[e0:e1], kind="mergesort")
+        incoming_ptr = np.zeros(m + 1, dtype=np.int64)
+        targets = np.empty(e1 - e0, dtype=np.int64)
+        for k in range(e1 - e0):
+            t = by_id[np.searchsorted(sorted_ids, target[edges[k]])]
+            targets[k] = t
+            incoming_ptr[t + 1] += 1
+        for t in range(m):
+            incoming_ptr[t + 1] += incoming_ptr[t]
+        fill = incoming_ptr[:-1].copy()
+        incoming = np.empty(e1 - e0, dtype=np.int64)
+        for k in range(e1 - e0):
+            incoming[fill[targets[k]]] = edges[k]
+            fill[targets[k]] += 1
+        # nodes that reach an output (walking enabled connections backwards)
+        local = np.full(e1 - e0, -1, dtype=np.int64)  # connection -> its source's node index
+        required = np.zeros(m, dtype=np.bool_)
+        stack = np.empty(m, dtype=np.int64)
+        top = 0
+        for o in range(n_outputs):
+            t = by_id[np.searchsorted(sorted_ids, n_inputs + o)]
+            required[t] = True
+            stack[top] = t
+            top += 1
+        while top:
+            top -= 1
+            t = stack[top]
+            for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+                src = source[incoming[k]]
+                if src >= n_inputs:
+                    u = by_id[np.searchsorted(sorted_ids, src)]
+                    local[incoming[k] - e0] = u
+                    if not required[u]:
+                        required[u] = True
+                        stack[top] = u
+                        top += 1
+        # Kahn's topological order among the required nodes, smallest id first
+        pending = np.zeros(m, dtype=np.int64)
+        n_required = 0
+        for t in range(m):
+            if required[t]:
+                n_required += 1
+                for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+                    if source[incoming[k]] >= n_inputs:
+                        pending[t] += 1
+        position = np.full(m, -1, dtype=np.int64)
+        order = np.empty(n_required, dtype=np.int64)
+        done = 0
+        while done < n_required:
+            best = -1
+            for r in range(m):  # the ready node of smallest id (ids sorted by by_id)
+                t = by_id[r]
+                if required[t] and position[t] < 0 and pending[t] == 0:
+                    best = t
+                    break
+            if best < 0:
+                return (
+                    False, sizes, counts, order_all, bias_all, act_all, indptr_all,
+                    sources_all, weights_all, outputs_all,
+                )  # fmt: skip
+            position[best] = done
+            order[done] = best
+            done += 1
+            for t in range(m):
+                if required[t] and position[t] < 0:
+                    for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+                        if local[incoming[k] - e0] == best:
+                            pending[t] -= 1
+        # the arrays
+        base = n_out + g
+        e_start = e_out
+        for j in range(n_required):
+            t = order[j]
+            order_all[n_out + j] = ids[t]
+            bias_all[n_out + j] = bias[node_ptr[g] + t]
+            act_all[n_out + j] = codes[node_ptr[g] + t]
+            for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+                e = incoming[k]
+                src = source[e]
+                sources_all[e_out] = src if src < n_inputs else n_inputs + position[local[e - e0]]
+                weights_all[e_out] = weight[e]
+                e_out += 1
+            indptr_all[base + j + 1] = e_out - e_start
+        for o in range(n_outputs):
+            t = by_id[np.searchsorted(sorted_ids, n_inputs + o)]
+            outputs_all[g, o] = position[t]
+        sizes[g] = n_required
+        counts[g] = e_out - e_start
+        n_out += n_required
+    return (
+        True, sizes, counts, order_all, bias_all, act_all, indptr_all, sources_all, weights_all,
+        outputs_all,
+    )  # fmt: skip
 
 
 def _checked_architecture(architecture: Any) -> tuple[int, int, list[str]]:
@@ -480,15 +665,13 @@ class GenomePopulation:
         """Compile NEAT genomes (all for ``robot``) into one population policy."""
         robot = as_robot(robot)
         n_inputs, n_outputs = robot_io(robot)
-        networks = []
         for genome in genomes:
             if (genome.n_inputs, genome.n_outputs) != (n_inputs, n_outputs):
                 raise EvolutionConfigError(
                     f"a genome with {genome.n_inputs} inputs and {genome.n_outputs} outputs "
                     f"does not fit robot {robot} ({n_inputs} inputs, {n_outputs} outputs)"
                 )
-            networks.append(genome_to_arrays(genome)[0])
-        return cls(networks, robot, parallel=parallel)
+        return cls(genomes_to_arrays(genomes), robot, parallel=parallel)
 
     def __reduce__(self) -> tuple[Any, ...]:
         return (type(self), (self.networks, self.robot), {"parallel": self.parallel})

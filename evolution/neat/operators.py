@@ -9,7 +9,10 @@
   either parent at random (disabled with a probability if disabled in either),
   disjoint and excess genes from the fitter parent;
 * the **compatibility distance** ``c1 E / N + c2 D / N + c3 W̄`` between two
-  genomes, on which speciation (:mod:`evolution.neat.species`) rests.
+  genomes, on which speciation (:mod:`evolution.neat.species`) rests; a
+  compiled twin (:func:`connection_table`, :func:`distance_kernel`) computes
+  the same value bit for bit on genomes flattened to arrays, for speciating a
+  whole population in one call.
 
 The operators follow ``deap``'s conventions (:func:`mutate` works in place and
 returns a 1-tuple; they are registered in the algorithm's toolbox) and draw
@@ -19,6 +22,10 @@ from Python's global ``random``, into which the algorithm swaps its own state.
 from __future__ import annotations
 
 import random
+from collections.abc import Sequence
+
+import numba
+import numpy as np
 
 from evolution.neat.compile import ACTIVATIONS
 from evolution.neat.config import NeatConfig
@@ -27,7 +34,9 @@ from evolution.neat.genome import ConnectionGene, Genome, InnovationTracker, Nod
 __all__ = [
     "SMALL_GENOME",
     "compatibility_distance",
+    "connection_table",
     "crossover",
+    "distance_kernel",
     "mutate",
     "mutate_activation",
     "mutate_add_connection",
@@ -46,32 +55,49 @@ SMALL_GENOME = 20
 # Mutations (all draw from ``random``)
 
 
-def _clip(value: float, bound: float) -> float:
-    return max(-bound, min(bound, value))
+# The operators run for every offspring of every generation: they read the
+# configuration and the ``random`` functions into locals once per call, which
+# changes neither the draws nor the arithmetic.
 
 
 def mutate_weights(genome: Genome, config: NeatConfig) -> None:
     """Perturb every connection weight (Gaussian), or replace it with ``weight_replace_rate``."""
-    for innovation in sorted(genome.connections):
-        gene = genome.connections[innovation]
-        if random.random() < config.weight_replace_rate:
-            gene.weight = random.gauss(0.0, config.weight_init_stdev)
+    draw, gauss = random.random, random.gauss
+    replace, init, power = (
+        config.weight_replace_rate,
+        config.weight_init_stdev,
+        config.weight_mutate_power,
+    )
+    bound = config.weight_max
+    connections = genome.connections
+    for innovation in sorted(connections):
+        gene = connections[innovation]
+        if draw() < replace:
+            weight = gauss(0.0, init)
         else:
-            gene.weight += random.gauss(0.0, config.weight_mutate_power)
-        gene.weight = _clip(gene.weight, config.weight_max)
+            weight = gene.weight + gauss(0.0, power)
+        gene.weight = max(-bound, min(bound, weight))
 
 
 def mutate_biases(genome: Genome, config: NeatConfig) -> None:
     """Perturb every output and hidden bias, or replace it with ``bias_replace_rate``."""
-    for node_id in sorted(genome.nodes):
-        node = genome.nodes[node_id]
+    draw, gauss = random.random, random.gauss
+    replace, init, power = (
+        config.bias_replace_rate,
+        config.bias_init_stdev,
+        config.bias_mutate_power,
+    )
+    bound = config.weight_max
+    nodes = genome.nodes
+    for node_id in sorted(nodes):
+        node = nodes[node_id]
         if node.kind == "input":
             continue
-        if random.random() < config.bias_replace_rate:
-            node.bias = random.gauss(0.0, config.bias_init_stdev)
+        if draw() < replace:
+            bias = gauss(0.0, init)
         else:
-            node.bias += random.gauss(0.0, config.bias_mutate_power)
-        node.bias = _clip(node.bias, config.weight_max)
+            bias = node.bias + gauss(0.0, power)
+        node.bias = max(-bound, min(bound, bias))
 
 
 def mutate_add_node(genome: Genome, tracker: InnovationTracker, config: NeatConfig) -> bool:
@@ -95,11 +121,8 @@ def mutate_add_node(genome: Genome, tracker: InnovationTracker, config: NeatConf
     return True
 
 
-def _descendants(genome: Genome, node: int) -> set[int]:
-    """``node`` and every node reachable from it through any connection gene."""
-    children: dict[int, list[int]] = {}
-    for gene in genome.connections.values():
-        children.setdefault(gene.in_node, []).append(gene.out_node)
+def _descendants(children: dict[int, list[int]], node: int) -> set[int]:
+    """``node`` and every node reachable from it (``children``: each node's targets)."""
     seen = {node}
     stack = [node]
     while stack:
@@ -118,16 +141,19 @@ def mutate_add_connection(genome: Genome, tracker: InnovationTracker, config: Ne
     not). Returns whether a connection was added (False when the genome is
     fully connected).
     """
-    targets = sorted(i for i, n in genome.nodes.items() if n.kind != "input")
+    nodes = genome.nodes
+    targets = sorted(i for i, n in nodes.items() if n.kind != "input")
     random.shuffle(targets)
+    children: dict[int, list[int]] = {}  # through any gene, enabled or not
+    parents: dict[int, list[int]] = {}
+    for gene in genome.connections.values():
+        children.setdefault(gene.in_node, []).append(gene.out_node)
+        parents.setdefault(gene.out_node, []).append(gene.in_node)
+    candidates = [i for i in sorted(nodes) if nodes[i].kind != "output"]
     for target in targets:
-        forbidden = _descendants(genome, target)
-        forbidden.update(g.in_node for g in genome.connections.values() if g.out_node == target)
-        sources = [
-            i
-            for i in sorted(genome.nodes)
-            if genome.nodes[i].kind != "output" and i not in forbidden
-        ]
+        forbidden = _descendants(children, target)
+        forbidden.update(parents.get(target, ()))
+        sources = [i for i in candidates if i not in forbidden]
         if sources:
             source = random.choice(sources)
             innovation = tracker.connection(source, target)
@@ -186,24 +212,32 @@ def crossover(first: Genome, second: Genome, config: NeatConfig) -> Genome:
     in-place ``mate`` operators it returns one new genome (invalid fitness).
     """
     fitter, other = (first, second) if not second.fitness > first.fitness else (second, first)
+    draw, disable = random.random, config.disable_inherit_rate
     child = Genome(fitter.n_inputs, fitter.n_outputs)
-    for node_id in sorted(fitter.nodes):
-        node = fitter.nodes[node_id]
-        match = other.nodes.get(node_id)
-        if node.kind != "input" and match is not None and random.random() < 0.5:
-            node = match
-        child.nodes[node_id] = NodeGene(node_id, node.kind, node.bias, node.activation)
-    for innovation in sorted(fitter.connections):
-        gene = fitter.connections[innovation]
-        match = other.connections.get(innovation)
-        enabled = gene.enabled
-        if match is not None:
-            if random.random() < 0.5:
-                gene = match
+    fitter_nodes, other_nodes, child_nodes = fitter.nodes, other.nodes, child.nodes
+    for node_id in sorted(fitter_nodes):
+        node = fitter_nodes[node_id]
+        if node.kind != "input":
+            match = other_nodes.get(node_id)
+            if match is not None and draw() < 0.5:
+                node = match
+        child_nodes[node_id] = NodeGene(node_id, node.kind, node.bias, node.activation)
+    fitter_genes, other_genes, child_genes = (
+        fitter.connections,
+        other.connections,
+        child.connections,
+    )
+    for innovation in sorted(fitter_genes):
+        own = fitter_genes[innovation]
+        match = other_genes.get(innovation)
+        if match is None:
+            gene, enabled = own, own.enabled
+        else:
+            gene = match if draw() < 0.5 else own
             enabled = True
-            if not (fitter.connections[innovation].enabled and match.enabled):
-                enabled = random.random() >= config.disable_inherit_rate
-        child.connections[innovation] = ConnectionGene(
+            if not (own.enabled and match.enabled):
+                enabled = draw() >= disable
+        child_genes[innovation] = ConnectionGene(
             innovation, gene.in_node, gene.out_node, gene.weight, enabled
         )
     return child
@@ -218,13 +252,14 @@ def compatibility_distance(a: Genome, b: Genome, config: NeatConfig) -> float:
 
     ``E`` counts excess genes (innovations beyond the other genome's last),
     ``D`` disjoint ones, ``W̄`` is the mean weight difference of matching genes
+    (summed in increasing innovation order, the order of :func:`distance_kernel`)
     and ``N`` the larger genome's number of connection genes (1 below
     :data:`SMALL_GENOME`).
     """
     ka, kb = a.connections, b.connections
     if not ka and not kb:
         return 0.0
-    matching = ka.keys() & kb.keys()
+    matching = sorted(ka.keys() & kb.keys())
     unmatched = ka.keys() ^ kb.keys()
     last = min(max(ka, default=-1), max(kb, default=-1))
     excess = sum(1 for i in unmatched if i > last)
@@ -239,3 +274,67 @@ def compatibility_distance(a: Genome, b: Genome, config: NeatConfig) -> float:
         + config.compatibility_disjoint * disjoint / n
         + config.compatibility_weight * weight
     )
+
+
+def connection_table(genomes: Sequence[Genome]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The connection genes of ``genomes`` as arrays, for :func:`distance_kernel`.
+
+    Returns ``(indptr, innovations, weights)``: genome ``g``'s genes are
+    ``indptr[g]:indptr[g + 1]``, sorted by innovation number.
+    """
+    sizes = np.fromiter((len(g.connections) for g in genomes), np.int64, len(genomes))
+    indptr = np.zeros(len(genomes) + 1, dtype=np.int64)
+    np.cumsum(sizes, out=indptr[1:])
+    total = int(indptr[-1])
+    innovations = np.fromiter(
+        (i for g in genomes for i in g.connections), np.int64, total
+    )  # fmt: skip
+    weights = np.fromiter(
+        (c.weight for g in genomes for c in g.connections.values()), np.float64, total
+    )
+    order = np.lexsort((innovations, np.repeat(np.arange(len(genomes)), sizes)))
+    return indptr, innovations[order], weights[order]
+
+
+@numba.njit(cache=True)
+def distance_kernel(ia, wa, ib, wb, c1, c2, c3):
+    """:func:`compatibility_distance` of two genomes given as sorted innovations and weights.
+
+    The same operations in the same order (matching genes in increasing
+    innovation), so the same value to the last bit.
+    """
+    na, nb = ia.shape[0], ib.shape[0]
+    if na == 0 and nb == 0:
+        return 0.0
+    last = min(ia[na - 1] if na else -1, ib[nb - 1] if nb else -1)
+    i = j = matching = unmatched = excess = 0
+    total = 0.0
+    while i < na and j < nb:
+        if ia[i] == ib[j]:
+            total += abs(wa[i] - wb[j])
+            matching += 1
+            i += 1
+            j += 1
+        elif ia[i] < ib[j]:
+            unmatched += 1
+            if ia[i] > last:
+                excess += 1
+            i += 1
+        else:
+            unmatched += 1
+            if ib[j] > last:
+                excess += 1
+            j += 1
+    for k in range(i, na):
+        unmatched += 1
+        if ia[k] > last:
+            excess += 1
+    for k in range(j, nb):
+        unmatched += 1
+        if ib[k] > last:
+            excess += 1
+    disjoint = unmatched - excess
+    weight = total / matching if matching else 0.0
+    size = max(na, nb)
+    n = 1.0 if size < SMALL_GENOME else float(size)
+    return c1 * excess / n + c2 * disjoint / n + c3 * weight

@@ -17,11 +17,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from evolution.neat.config import NeatConfig
 from evolution.neat.genome import Genome
-from evolution.neat.operators import compatibility_distance
+from evolution.neat.operators import connection_table, distance_kernel
 
 __all__ = [
     "Species",
@@ -64,26 +65,79 @@ def speciate(
 
     Each genome joins the first species (by id) whose representative is
     within ``threshold``, else founds a new one. A surviving species' new
-    representative is its member closest to the old one.
+    representative is its member closest to the old one (the first on ties).
+    Distances are those of :func:`~evolution.neat.operators.compatibility_distance`,
+    computed by one compiled call over the whole population.
     """
     current = [
         Species(s.id, s.representative, s.created, [], s.best_fitness, s.last_improved)
         for s in sorted(species, key=lambda s: s.id)
     ]
-    for genome in genomes:
-        for s in current:
-            if compatibility_distance(genome, s.representative, config) < threshold:
-                s.members.append(genome)
-                break
-        else:
-            current.append(Species(next_id, genome, generation, [genome], -math.inf, generation))
+    genome_ptr, genome_innovations, genome_weights = connection_table(genomes)
+    rep_ptr, rep_innovations, rep_weights = connection_table([s.representative for s in current])
+    assigned, closest = _speciate_kernel(
+        genome_ptr, genome_innovations, genome_weights,
+        rep_ptr, rep_innovations, rep_weights, float(threshold),
+        float(config.compatibility_excess), float(config.compatibility_disjoint),
+        float(config.compatibility_weight),
+    )  # fmt: skip
+    for index, genome in zip(assigned.tolist(), genomes, strict=True):
+        if index == len(current):
+            current.append(Species(next_id, genome, generation, [], -math.inf, generation))
             next_id += 1
+        current[index].members.append(genome)
     alive = [s for s in current if s.members]
-    for s in alive:
-        s.representative = min(
-            s.members, key=lambda g, r=s.representative: compatibility_distance(g, r, config)
-        )
+    for s, member in zip(current, closest.tolist(), strict=False):
+        if s.members:
+            s.representative = genomes[member]
     return alive, next_id
+
+
+@numba.njit(cache=True)
+def _speciate_kernel(g_ptr, g_inn, g_w, r_ptr, r_inn, r_w, threshold, c1, c2, c3):
+    """Species index of each genome and each species' closest member to its representative.
+
+    Species ``0 .. m - 1`` are those of ``r_*`` (old representatives); a genome
+    that fits none founds species ``m, m + 1, ...`` and is its representative.
+    ``closest[s]`` is the index of the member of species ``s`` nearest to its
+    representative (the first on ties; -1 for a species without members).
+    """
+    n = g_ptr.shape[0] - 1
+    m = r_ptr.shape[0] - 1
+    founder = np.full(m + n, -1, dtype=np.int64)  # -1: an old representative
+    assigned = np.empty(n, dtype=np.int64)
+    n_species = m
+    for j in range(n):
+        ia, wa = g_inn[g_ptr[j] : g_ptr[j + 1]], g_w[g_ptr[j] : g_ptr[j + 1]]
+        assigned[j] = -1
+        for s in range(n_species):
+            f = founder[s]
+            if f < 0:
+                ib, wb = r_inn[r_ptr[s] : r_ptr[s + 1]], r_w[r_ptr[s] : r_ptr[s + 1]]
+            else:
+                ib, wb = g_inn[g_ptr[f] : g_ptr[f + 1]], g_w[g_ptr[f] : g_ptr[f + 1]]
+            if distance_kernel(ia, wa, ib, wb, c1, c2, c3) < threshold:
+                assigned[j] = s
+                break
+        if assigned[j] < 0:
+            founder[n_species] = j
+            assigned[j] = n_species
+            n_species += 1
+    best = np.full(n_species, np.inf)
+    closest = np.full(n_species, -1, dtype=np.int64)
+    for j in range(n):
+        s = assigned[j]
+        ia, wa = g_inn[g_ptr[j] : g_ptr[j + 1]], g_w[g_ptr[j] : g_ptr[j + 1]]
+        f = founder[s]
+        if f < 0:
+            ib, wb = r_inn[r_ptr[s] : r_ptr[s + 1]], r_w[r_ptr[s] : r_ptr[s + 1]]
+        else:
+            ib, wb = g_inn[g_ptr[f] : g_ptr[f + 1]], g_w[g_ptr[f] : g_ptr[f + 1]]
+        d = distance_kernel(ia, wa, ib, wb, c1, c2, c3)
+        if closest[s] < 0 or d < best[s]:
+            best[s] = d
+            closest[s] = j
+    return assigned, closest
 
 
 def update_progress(species: Sequence[Species], generation: int) -> None:

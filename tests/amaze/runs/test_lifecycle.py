@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import gc
 import json
 import os
 from dataclasses import dataclass
@@ -23,7 +24,7 @@ from amaze.evaluation.controllers import RandomController
 from amaze.runs.command import TrainingCommand
 from amaze.runs.config import RunConfig, option
 from amaze.runs.folder import write_json
-from amaze.runs.lifecycle import Run
+from amaze.runs.lifecycle import Run, frozen_heap
 from tests.run_folders import snapshot
 
 
@@ -282,3 +283,33 @@ def test_an_unwritable_disk_is_one_error_line(
     assert COMMAND.main(["--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: {words}: ") and "config.json" in err[0]
+
+
+class _FreezeWatchingRun(CountingRun):
+    """Records how many objects the garbage collector left out while it trained."""
+
+    frozen: ClassVar[list[int]] = []
+
+    def train(self, progress_bar: bool) -> None:
+        type(self).frozen.append(gc.get_freeze_count())
+        super().train(progress_bar)
+
+
+def test_training_runs_with_the_set_up_frozen_out_of_the_collector(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    assert gc.get_freeze_count() == 0
+    _FreezeWatchingRun.fresh({"steps": 4}, tmp_path / "run")
+    monkeypatch.setattr(CountingRun, "kill_at", 3)
+    with pytest.raises(_Killed):
+        _FreezeWatchingRun.fresh({"steps": 4}, tmp_path / "killed")
+    assert gc.get_freeze_count() == 0  # given back, on an error too
+    monkeypatch.setattr(CountingRun, "kill_at", None)
+    _FreezeWatchingRun.resume(tmp_path / "killed")
+    assert len(_FreezeWatchingRun.frozen) == 3 and min(_FreezeWatchingRun.frozen) > 1000
+    assert gc.get_freeze_count() == 0
+    with frozen_heap():
+        garbage: list[object] = []
+        garbage.append(garbage)  # a cycle made meanwhile is still collected
+        del garbage
+        assert gc.collect() >= 1

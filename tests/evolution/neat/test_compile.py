@@ -19,6 +19,7 @@ from evolution.neat import (
     new_genome,
     policy_from_arrays,
 )
+from evolution.neat.compile import genomes_to_arrays
 from tests.evolution.neat.conftest import grown_genomes, reference_outputs
 
 
@@ -118,3 +119,35 @@ def test_unreachable_nodes_and_disabled_connections_are_left_out():
     assert hidden not in arrays["node_ids"]
     assert architecture["n_nodes"] == 4
     assert architecture["n_connections"] == 31  # 32 initial, one split and disabled
+
+
+@pytest.mark.parametrize("robot", ["DD", "H5", "CC5"])
+def test_population_compilation_gives_each_genomes_arrays(robot):
+    genomes = grown_genomes(robot, 40, 25, seed=21)
+    genomes[5].connections = {}  # outputs with bias only
+    for gene in genomes[6].connections.values():
+        gene.enabled = False
+    batch = genomes_to_arrays(genomes)
+    assert len(batch) == len(genomes)
+    for genome, arrays in zip(genomes, batch, strict=True):
+        expected = genome_to_arrays(genome)[0]
+        assert arrays.keys() == expected.keys()
+        for key, value in expected.items():
+            assert arrays[key].dtype == value.dtype, key
+            np.testing.assert_array_equal(arrays[key], value, err_msg=key)
+    assert genomes_to_arrays([]) == []
+
+
+def test_population_compilation_refuses_a_cycle():
+    genome = grown_genomes("DD", 1, 0, seed=2)[0]
+    tracker = InnovationTracker(8, 4)
+    random.seed(1)
+    mutate_add_node(genome, tracker, NeatConfig())
+    hidden = max(genome.nodes)
+    output = next(c.out_node for c in genome.connections.values() if c.in_node == hidden)
+    back = tracker.connection(output, hidden)
+    genome.connections[back] = type(genome.connections[0])(back, output, hidden, 0.5)
+    with pytest.raises(ValueError, match="cycle"):
+        genome_to_arrays(genome)
+    with pytest.raises(ValueError, match="cycle"):
+        genomes_to_arrays([grown_genomes("DD", 1, 3, seed=4)[0], genome])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import random
 
 import numpy as np
@@ -14,11 +15,14 @@ from evolution.neat import (
     NeatConfig,
     Species,
     allot_offspring,
+    compatibility_distance,
     new_genome,
     remove_stagnant,
     shared_fitness,
     speciate,
 )
+from evolution.neat.operators import connection_table, distance_kernel
+from tests.evolution.neat.conftest import grown_genomes
 
 
 def _cluster(center: Genome, size: int, spread: float) -> list[Genome]:
@@ -97,3 +101,60 @@ def test_constant_fitness_leaves_at_most_one_stagnant_species():
         assert len(stale) <= 1
         counts.append(algorithm.stats()["n_species"])
     assert max(counts) > 1
+
+
+def _plain_speciate(genomes, species, threshold, config, generation, next_id):
+    """Speciation genome by genome with :func:`compatibility_distance` (the definition)."""
+    current = [
+        Species(s.id, s.representative, s.created, [], s.best_fitness, s.last_improved)
+        for s in sorted(species, key=lambda s: s.id)
+    ]
+    for genome in genomes:
+        for s in current:
+            if compatibility_distance(genome, s.representative, config) < threshold:
+                s.members.append(genome)
+                break
+        else:
+            current.append(Species(next_id, genome, generation, [genome], -math.inf, generation))
+            next_id += 1
+    alive = [s for s in current if s.members]
+    for s in alive:
+        s.representative = min(
+            s.members, key=lambda g, r=s.representative: compatibility_distance(g, r, config)
+        )
+    return alive, next_id
+
+
+def test_compiled_distance_is_compatibility_distance_to_the_bit():
+    genomes = grown_genomes("DD", 30, 12, seed=5)
+    genomes[3].connections = {}  # an empty genome against full ones
+    config = NeatConfig(compatibility_excess=1.3, compatibility_disjoint=0.7)
+    indptr, innovations, weights = connection_table(genomes)
+    for a in range(len(genomes)):
+        for b in range(len(genomes)):
+            sa, sb = slice(indptr[a], indptr[a + 1]), slice(indptr[b], indptr[b + 1])
+            compiled = distance_kernel(
+                innovations[sa], weights[sa], innovations[sb], weights[sb],
+                config.compatibility_excess, config.compatibility_disjoint,
+                config.compatibility_weight,
+            )  # fmt: skip
+            assert compiled == compatibility_distance(genomes[a], genomes[b], config)
+    assert innovations[indptr[3] : indptr[4]].size == 0
+    assert np.all(np.diff(innovations[indptr[0] : indptr[1]]) > 0)
+
+
+@pytest.mark.parametrize("threshold", [0.3, 1.0, 3.0])
+def test_speciation_matches_the_genome_by_genome_definition(threshold):
+    genomes = grown_genomes("DD", 60, 6, seed=11)
+    config = NeatConfig()
+    old = [Species(4, genomes[7].copy(), 0, []), Species(2, genomes[40].copy(), 0, [])]
+    old.append(Species(9, grown_genomes("DD", 1, 30, seed=12)[0], 1, []))  # matches nobody
+    got, got_next = speciate(genomes, old, threshold, config, 5, 10)
+    want, want_next = _plain_speciate(genomes, old, threshold, config, 5, 10)
+    assert got_next == want_next
+    assert [s.id for s in got] == [s.id for s in want]
+    for a, b in zip(got, want, strict=True):
+        assert [id(g) for g in a.members] == [id(g) for g in b.members]
+        assert a.representative is b.representative
+        fields = ("created", "best_fitness", "last_improved")
+        assert [getattr(a, f) for f in fields] == [getattr(b, f) for f in fields]

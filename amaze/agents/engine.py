@@ -1205,38 +1205,32 @@ class BatchEngine:
             self.auto_reset,
             obs, rewards, term, trunc, self._ep_int, self._ep_ret, self._ep_success, self._final,
         )  # fmt: skip
-        if count <= 0:
-            if count < 0:
-                self._refuse(count, a)
-            return _build(
-                StepResult,
-                observations=obs,
-                rewards=rewards,
-                terminated=term,
-                truncated=trunc,
-                final_observations=self._no_final,
-                episodes=self._no_episodes,
+        if count < 0:
+            self._refuse(count, a)
+        if count == 0:
+            final, episodes = self._no_final, self._no_episodes
+        else:
+            ints = self._ep_int[:, :count].copy()
+            final = self._final[:count].copy()
+            episodes = _build(
+                EndedEpisodes,
+                agents=ints[_EP_AGENT],
+                cumulative_reward=self._ep_ret[:count].copy(),
+                steps=ints[_EP_STEPS],
+                collisions=ints[_EP_COLL],
+                backsteps=ints[_EP_BACK],
+                success=self._ep_success[:count].copy(),
+                path_length=ints[_EP_LEN],
+                dt=self.dt,
+                deadline_factor=self.deadline_factor,
             )
-        ints = self._ep_int[:, :count].copy()
-        episodes = _build(
-            EndedEpisodes,
-            agents=ints[_EP_AGENT],
-            cumulative_reward=self._ep_ret[:count].copy(),
-            steps=ints[_EP_STEPS],
-            collisions=ints[_EP_COLL],
-            backsteps=ints[_EP_BACK],
-            success=self._ep_success[:count].copy(),
-            path_length=ints[_EP_LEN],
-            dt=self.dt,
-            deadline_factor=self.deadline_factor,
-        )
         return _build(
             StepResult,
             observations=obs,
             rewards=rewards,
             terminated=term,
             truncated=trunc,
-            final_observations=self._final[:count].copy(),
+            final_observations=final,
             episodes=episodes,
         )
 

@@ -60,44 +60,50 @@ SMALL_GENOME = 20
 # changes neither the draws nor the arithmetic.
 
 
+def _perturbed(
+    values: list[float], replace: float, init: float, power: float, bound: float
+) -> list[float]:
+    """Each value replaced (with probability ``replace``) or perturbed, clipped to ``bound``.
+
+    A replacement is drawn from N(0, init), a perturbation adds N(0, power).
+
+    One ``random()`` then one ``gauss`` per value, in order: the draws of the
+    weight and bias mutations.
+    """
+    draw, gauss = random.random, random.gauss
+    perturbed = []
+    for value in values:
+        value = gauss(0.0, init) if draw() < replace else value + gauss(0.0, power)
+        perturbed.append(max(-bound, min(bound, value)))
+    return perturbed
+
+
 def mutate_weights(genome: Genome, config: NeatConfig) -> None:
     """Perturb every connection weight (Gaussian), or replace it with ``weight_replace_rate``."""
-    draw, gauss = random.random, random.gauss
-    replace, init, power = (
+    genes = [genome.connections[i] for i in sorted(genome.connections)]
+    weights = _perturbed(
+        [gene.weight for gene in genes],
         config.weight_replace_rate,
         config.weight_init_stdev,
         config.weight_mutate_power,
+        config.weight_max,
     )
-    bound = config.weight_max
-    connections = genome.connections
-    for innovation in sorted(connections):
-        gene = connections[innovation]
-        if draw() < replace:
-            weight = gauss(0.0, init)
-        else:
-            weight = gene.weight + gauss(0.0, power)
-        gene.weight = max(-bound, min(bound, weight))
+    for gene, weight in zip(genes, weights, strict=True):
+        gene.weight = weight
 
 
 def mutate_biases(genome: Genome, config: NeatConfig) -> None:
     """Perturb every output and hidden bias, or replace it with ``bias_replace_rate``."""
-    draw, gauss = random.random, random.gauss
-    replace, init, power = (
+    nodes = [genome.nodes[i] for i in sorted(genome.nodes) if genome.nodes[i].kind != "input"]
+    biases = _perturbed(
+        [node.bias for node in nodes],
         config.bias_replace_rate,
         config.bias_init_stdev,
         config.bias_mutate_power,
+        config.weight_max,
     )
-    bound = config.weight_max
-    nodes = genome.nodes
-    for node_id in sorted(nodes):
-        node = nodes[node_id]
-        if node.kind == "input":
-            continue
-        if draw() < replace:
-            bias = gauss(0.0, init)
-        else:
-            bias = node.bias + gauss(0.0, power)
-        node.bias = max(-bound, min(bound, bias))
+    for node, bias in zip(nodes, biases, strict=True):
+        node.bias = bias
 
 
 def mutate_add_node(genome: Genome, tracker: InnovationTracker, config: NeatConfig) -> bool:

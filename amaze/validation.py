@@ -1,4 +1,4 @@
-"""Checks of user-given values: one place for "is this a positive integer?".
+"""Checks of user-given values: one place for "is this a positive integer?" and "is this JSON?".
 
 Configs, constructors and command-line options all take numbers from users.
 These helpers check one value and return it (typed), or raise the caller's
@@ -6,14 +6,25 @@ error class (a :class:`ValueError` subclass) with a message naming the value,
 as the project's error contract asks. Booleans are never numbers here
 (``True`` is an ``int`` in Python, never a meaningful count), and non-finite
 floats are refused unless ``finite=False``.
+
+:func:`parse_json` reads a JSON document from a file or a request the same
+way everywhere: any text (invalid UTF-8, a BOM, nesting deep enough to exhaust
+Python's recursion) ends in the caller's error naming where it came from.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from numbers import Integral, Real
+from typing import Any
 
-__all__ = ["check_integer", "check_number"]
+__all__ = ["MAX_JSON_DEPTH", "check_integer", "check_number", "nests_within", "parse_json"]
+
+#: Deepest nesting of arrays and objects :func:`parse_json` accepts. The
+#: project's files nest a few levels; a document nested hundreds deep would
+#: exhaust Python's recursion later, in whatever code walks it.
+MAX_JSON_DEPTH = 100
 
 
 def _integer_kind(minimum: int | None, maximum: int | None) -> str:
@@ -86,3 +97,55 @@ def check_number(
             bounds = f"<= {maximum}"
         raise error(f"{name} {value!r} is not a number {bounds}")
     return number
+
+
+def parse_json(
+    text: str | bytes,
+    what: str,
+    *,
+    error: type[ValueError] = ValueError,
+    max_depth: int = MAX_JSON_DEPTH,
+) -> Any:
+    """The value of the JSON document ``text``; ``error`` naming ``what`` otherwise.
+
+    ``what`` says where the text came from (``"summary 'runs/x/summary.json'"``).
+    Bytes must be UTF-8 (a leading BOM is refused, as JSON forbids it);
+    nesting deeper than ``max_depth`` (``[`` x 100000) is refused like any
+    other bad document.
+    """
+    if isinstance(text, bytes | bytearray):
+        try:
+            text = bytes(text).decode("utf-8")
+        except UnicodeDecodeError as problem:
+            raise error(
+                f"{what} is not UTF-8 text ({problem.reason} at byte {problem.start})"
+            ) from None
+    if text.startswith("\ufeff"):
+        raise error(f"{what} starts with a byte-order mark, which JSON does not allow")
+    try:
+        value = json.loads(text)
+    except ValueError as problem:  # JSONDecodeError, or an integer of over 4300 digits
+        raise error(f"{what} is not JSON: {problem}") from None
+    except RecursionError:
+        value = None
+    else:
+        if nests_within(value, max_depth):
+            return value
+    raise error(f"{what} nests arrays or objects more than {max_depth} deep")
+
+
+def nests_within(value: Any, limit: int) -> bool:
+    """Whether ``value`` (parsed JSON or TOML) nests lists and dicts at most ``limit`` deep.
+
+    Walked without recursion, so that any depth is measured safely.
+    """
+    stack = [(value, 1)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict):
+            item = list(item.values())
+        if isinstance(item, list):
+            if depth > limit:
+                return False
+            stack.extend((child, depth + 1) for child in item)
+    return True

@@ -28,7 +28,7 @@ seconds everything the loop does. Where the time goes is reported in
 logging and checkpoints).
 
 **Run folder**: the direct regime's (``config.json``, ``progress.csv``,
-``checkpoints/state.pkl``, ``champion.npz``, ``summary.json``) and
+``checkpoints/state.npz``, ``champion.npz``, ``summary.json``) and
 
 * ``mazes.csv``: every maze that was ever a member of the population (its
   string, origin, parent, birth, retirement, last scores and difficulty
@@ -80,7 +80,7 @@ from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
 from evolution.backends import current_backend
-from evolution.config import CHECKPOINT_ALLOWLIST
+from evolution.checkpoint import evolution_codec
 from evolution.generations import GenerationLoop
 from evolution.population import EvaluationBackend, PopulationEvaluator
 
@@ -114,6 +114,8 @@ class _State:
     champion: tuple[dict[str, np.ndarray], dict] | None = None
     time: dict[str, float] = field(default_factory=lambda: dict.fromkeys(TIME_PARTS[:-1], 0.0))
     version: int = CHECKPOINT_VERSION
+    #: The SHA-256 of the run's ``config.json`` (:attr:`~amaze.runs.lifecycle.Run.config_digest`).
+    config_sha256: str | None = None
 
 
 class EvolutionCoevolutionRun(GenerationLoop):
@@ -155,18 +157,26 @@ class EvolutionCoevolutionRun(GenerationLoop):
         population = MazePopulation.for_run(c.target, self.options, c.seed, self.validation_mazes)
         self.state = _State(algorithm, population)
         self.validation  # noqa: B018
+        self.check_budget()
+
+    def generation_steps(self) -> tuple[int, str]:
+        """The population on a batch's episodes (4 rotations each), at least a step each."""
+        population = len(self.state.algorithm.ask())
+        episodes = 4 * self.options.batch
+        return population * episodes, f"{population} individuals on {episodes} episodes"
 
     def restore(self) -> int | None:
         if not self.checkpoint.exists():
             return None
         state = read_checkpoint(
-            self.checkpoint, CHECKPOINT_ALLOWLIST, EvolutionConfigError, expected=_State
+            self.checkpoint, evolution_codec(_State), EvolutionConfigError, expected=_State
         )
         if state.version != CHECKPOINT_VERSION:
             raise EvolutionConfigError(
                 f"checkpoint {str(self.checkpoint)!r} is of version {state.version!r},"
                 f" not {CHECKPOINT_VERSION}"
             )
+        self.check_config_digest(state.config_sha256, f"checkpoint {str(self.checkpoint)!r}")
         self.state = state
         self.validation  # noqa: B018
         return state.generation
@@ -331,7 +341,8 @@ class EvolutionCoevolutionRun(GenerationLoop):
         )
 
     def save_checkpoint(self) -> None:
-        write_checkpoint(self.checkpoint, self.state)
+        self.state.config_sha256 = self.config_digest
+        write_checkpoint(self.checkpoint, self.state, evolution_codec(_State))
         self.write_mazes_csv()
 
     def time_breakdown(self) -> dict[str, float]:

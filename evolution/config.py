@@ -1,10 +1,8 @@
-"""The evolution run config (``config.json``, the ``amaze-evolve`` options) and checkpoint rules.
+"""The evolution run config (``config.json``, the ``amaze-evolve`` options).
 
 :class:`EvolveConfig` defines a run of either loop: the direct regime
 (:class:`evolution.run.EvolutionRun`, generations on fixed mazes) and the
 curriculum regimes (:class:`evolution.curriculum.EvolutionCurriculumRun`).
-:data:`CHECKPOINT_ALLOWLIST` says what an evolution checkpoint (a run's
-``state.pkl``, a learner's ``learner.pkl``) may name when it is read back.
 """
 
 from __future__ import annotations
@@ -16,7 +14,6 @@ from typing import Any
 
 from amaze.curriculum.regimes import REGIMES
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
-from amaze.runs.checkpoint import Allowlist
 from amaze.runs.config import option
 from amaze.runs.curriculum import CurriculumConfig
 from amaze.validation import check_integer, check_number
@@ -24,19 +21,7 @@ from evolution import EvolutionConfigError
 from evolution.algorithms import ALGORITHMS, algorithm_class
 from evolution.population import FITNESS
 
-__all__ = ["CHECKPOINT_ALLOWLIST", "COEVOLUTION_CMAES", "EvolveConfig"]
-
-#: What an evolution checkpoint may name (:mod:`amaze.runs.checkpoint`): the
-#: classes of the run's own libraries and the few functions they keep as values.
-CHECKPOINT_ALLOWLIST = Allowlist.of(
-    names=(
-        "_operator:eq",  # deap's HallOfFame compares individuals with it
-        "cma.evolution_strategy:_pass",
-        "cma.options_parameters:is_feasible",
-        "numpy.linalg:eigh",
-    ),
-    class_prefixes=("evolution.", "amaze.", "cma.", "deap."),
-)
+__all__ = ["COEVOLUTION_CMAES", "EvolveConfig"]
 
 
 #: CMA-ES options of the coevolution regime that a config leaves out: one 16-unit

@@ -7,7 +7,7 @@ curriculum loop of :class:`amaze.runs.curriculum.CurriculumRun` with an
 ``algorithm`` options, ``fitness`` and ``checkpoint_seconds``):
 :meth:`evolution.run.EvolutionRun.run_class_for` hands a curriculum config to
 :class:`EvolutionCurriculumRun`. Each branch folder's ``agent/`` holds the
-learner (``learner.pkl``) and its champion (``champion.npz``, an agent file
+learner (``learner.npz``) and its champion (``champion.npz``, an agent file
 for ``amaze run --controller``); ``checkpoint/`` holds the learner mid-session
 while the branch trains. Evolution is deterministic, so ``--replay`` of a run
 and ``--resume`` of a killed one reach its final champion bit for bit.
@@ -16,13 +16,16 @@ and ``--resume`` of a killed one reach its final champion bit for bit.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import cached_property
 from pathlib import Path
 from typing import Any, ClassVar
 
+from amaze.maze import rotations
 from amaze.runs.curriculum import CurriculumRun
 from evolution.algorithms import make_algorithm
 from evolution.config import EvolveConfig
 from evolution.learner import EvolutionLearner, load_learner
+from evolution.population import fewest_steps
 
 __all__ = ["EvolutionCurriculumRun"]
 
@@ -36,9 +39,21 @@ class EvolutionCurriculumRun(CurriculumRun):
 
     def start(self) -> None:
         """Bad algorithm options fail here, before anything is written; then the curator."""
-        c = self.config
-        make_algorithm(c.algo, c.algorithm, c.robot, c.seed)
+        self._population  # noqa: B018 (builds the algorithm once)
         super().start()
+
+    @cached_property
+    def _population(self) -> int:
+        """Individuals of the algorithm's first generation (bad options fail here)."""
+        c = self.config
+        return len(make_algorithm(c.algo, c.algorithm, c.robot, c.seed).ask())
+
+    def smallest_unit(self) -> tuple[int, str]:
+        """A generation of the first population on the trivial maze's 4 rotations, at least."""
+        c = self.config
+        trivial = rotations(c.curator_context().trivial_maze())
+        steps = self._population * fewest_steps(trivial, c.robot)
+        return steps, f"a generation of {self._population} individuals on the trivial maze"
 
     def new_learner(self, seed: int) -> EvolutionLearner:
         c = self.config

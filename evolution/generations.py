@@ -32,7 +32,7 @@ class GenerationLoop(Run):
 
     config_class = EvolveConfig
     position_field = "generation"
-    checkpoint_files = ("state.pkl",)
+    checkpoint_files = ("state.npz",)
     config: EvolveConfig
 
     def __init__(self, out: str | os.PathLike, config: EvolveConfig) -> None:
@@ -51,6 +51,25 @@ class GenerationLoop(Run):
     @abstractmethod
     def save_checkpoint(self) -> None:
         """Write the state to :attr:`checkpoint`, atomically."""
+
+    @abstractmethod
+    def generation_steps(self) -> tuple[int, str]:
+        """The fewest env steps the next generation can spend, and what it is.
+
+        A generation starts only if the steps budget left pays it (it may then
+        spend more, by less than a generation); a fresh run whose budget
+        cannot pay the first one is refused before its folder is written.
+        """
+
+    def check_budget(self) -> None:
+        """Refuse a steps budget that cannot pay the first generation (:meth:`generation_steps`)."""
+        c = self.config
+        steps, what = self.generation_steps()
+        if c.budget_steps is not None and c.budget_steps < steps:
+            raise c.error(
+                f"budget_steps {c.budget_steps} cannot pay one generation: {what} spend at"
+                f" least {steps} steps"
+            )
 
     def train(self, progress_bar: bool) -> None:
         """Generations until a budget is spent, with a progress bar (ETA from the budget)."""
@@ -98,14 +117,15 @@ class GenerationLoop(Run):
                 bar.update(self._done() - bar.n)
 
     def budget_left(self) -> bool:
+        """Whether another generation starts: every budget has room, the algorithm goes on."""
         c, s = self.config, self.state
-        if c.budget_steps is not None and s.steps >= c.budget_steps:
+        if s.algorithm.stopped:
+            return False
+        if c.budget_steps is not None and c.budget_steps - s.steps < self.generation_steps()[0]:
             return False
         if c.budget_seconds is not None and s.seconds >= c.budget_seconds:
             return False
-        if c.max_generations is not None and s.generation >= c.max_generations:
-            return False
-        return not s.algorithm.stopped
+        return c.max_generations is None or s.generation < c.max_generations
 
     def _done(self) -> float:
         """How much of the budget the progress bar counts is spent (steps, else seconds)."""

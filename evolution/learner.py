@@ -30,10 +30,11 @@ current training session.
   mazes, the inherited champion included) as a policy.
 * ``branch(seed)`` is a deep copy whose algorithm is reseeded with ``seed``
   (:meth:`~evolution.algorithms.SearchAlgorithm.reseed`), without a session.
-* ``save(folder)`` writes ``learner.pkl`` (the whole learner, a checkpoint of
+* ``save(folder)`` writes ``learner.npz`` (the whole learner, a checkpoint of
   :mod:`amaze.runs.checkpoint` read back by :func:`load_learner` with the
-  evolution allow-list) and, once there is a champion, ``champion.npz`` (an
-  agent file: ``amaze run --controller FOLDER/champion.npz``).
+  evolution codec: JSON plus arrays, naming no function) and, once there is
+  a champion, ``champion.npz`` (an agent file: ``amaze run --controller
+  FOLDER/champion.npz``).
 
 Populations are played on the current backend (:mod:`evolution.backends`:
 this process, or Ray actors with identical results).
@@ -48,6 +49,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -57,20 +59,20 @@ from typing import Any
 import numpy as np
 
 from amaze.curriculum.learner import TrainingOutcome, checked_session_budget
-from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
+from amaze.runs.checkpoint import StateCodec, read_checkpoint, write_checkpoint
 from amaze.validation import check_number
 from evolution import EvolutionConfigError
 from evolution.agent_file import policy_from_agent_arrays, save_agent
-from evolution.algorithms import ALGORITHMS, SearchAlgorithm, algorithm_class, make_algorithm
+from evolution.algorithms import SearchAlgorithm, make_algorithm
 from evolution.backends import Backend, current_backend
-from evolution.config import CHECKPOINT_ALLOWLIST
-from evolution.population import FITNESS, EvaluationBackend, PopulationResult
+from evolution.checkpoint import evolution_codec
+from evolution.population import FITNESS, EvaluationBackend, PopulationResult, fewest_steps
 
 __all__ = ["LEARNER_FILE", "LEARNER_VERSION", "EvolutionLearner", "load_learner"]
 
-LEARNER_FILE = "learner.pkl"
+LEARNER_FILE = "learner.npz"
 CHAMPION_FILE = "champion.npz"
-#: Version of the pickled learner's layout; another version is refused.
+#: Version of the saved learner's layout; another version is refused.
 LEARNER_VERSION = 1
 #: R̄ (or the pretty reward) at or above this counts as optimal (1 for a run in l-1 steps).
 OPTIMAL = 1.0 - 1e-9
@@ -237,7 +239,7 @@ class EvolutionLearner:
         )
 
     def save(self, folder: Path) -> None:
-        """``learner.pkl`` and, once there is a champion, ``champion.npz``, each atomically."""
+        """``learner.npz`` and, once there is a champion, ``champion.npz``, each atomically."""
         folder = Path(folder)
         champion = self.champion
         if champion is not None:
@@ -255,7 +257,7 @@ class EvolutionLearner:
                     "seed": self.seed,
                 },
             )
-        write_checkpoint(folder / LEARNER_FILE, self)
+        write_checkpoint(folder / LEARNER_FILE, self, _codec())
 
     # -- figures --------------------------------------------------------------------
 
@@ -267,13 +269,24 @@ class EvolutionLearner:
     # -- the loop's own ---------------------------------------------------------------
 
     def _goes_on(self, session: Session) -> bool:
+        """The session has not converged or stopped, and has budget for another generation.
+
+        A generation starts only if the steps left pay its smallest cost
+        (:meth:`generation_steps`); it may then cost more, by less than a
+        generation, which the session's steps record.
+        """
         budget_seconds = getattr(session, "budget_seconds", None)
+        steps_left = None if session.budget_steps is None else session.budget_steps - session.steps
         return (
-            (session.budget_steps is None or session.steps < session.budget_steps)
-            and (budget_seconds is None or session.seconds < budget_seconds)
-            and not session.converged
+            not session.converged
             and not self.algorithm.stopped
+            and (budget_seconds is None or session.seconds < budget_seconds)
+            and (steps_left is None or steps_left >= self.generation_steps(session.mazes))
         )
+
+    def generation_steps(self, mazes: Sequence[str]) -> int:
+        """The fewest env steps a generation of the algorithm can spend on ``mazes`` (as given)."""
+        return len(self.algorithm.ask()) * _fewest_steps(tuple(mazes), self.robot)
 
     def _evaluator(self, mazes: tuple[str, ...]) -> EvaluationBackend:
         """The evaluator of ``mazes`` on the current backend (kept while both stay the same)."""
@@ -336,19 +349,28 @@ class EvolutionLearner:
         return bool(reached.all(axis=1).any())
 
 
+@functools.lru_cache(maxsize=32)
+def _fewest_steps(mazes: tuple[str, ...], robot: str) -> int:
+    """:func:`~evolution.population.fewest_steps`, once per session's mazes."""
+    return fewest_steps(mazes, robot)
+
+
+def _codec() -> StateCodec:
+    """What ``learner.npz`` may hold: the learner, its session and champion, and an algorithm."""
+    return evolution_codec(EvolutionLearner, Session, Champion)
+
+
 def load_learner(folder: Path) -> EvolutionLearner:
     """The learner saved in ``folder`` (:meth:`EvolutionLearner.save`).
 
-    Raises :class:`~evolution.EvolutionConfigError` naming ``learner.pkl`` if
+    Raises :class:`~evolution.EvolutionConfigError` naming ``learner.npz`` if
     it is missing, damaged, names what a checkpoint may not, or is of another
     version.
     """
-    for name in ALGORITHMS:  # the restricted unpickler rebuilds only loaded classes
-        algorithm_class(name)
     path = Path(folder) / LEARNER_FILE
     if not (path.exists() or path.is_symlink()):
         raise EvolutionConfigError(f"learner {str(path)!r} does not exist")
-    learner = read_checkpoint(path, CHECKPOINT_ALLOWLIST, EvolutionConfigError, EvolutionLearner)
+    learner = read_checkpoint(path, _codec(), EvolutionConfigError, EvolutionLearner)
     version = getattr(learner, "version", None)
     if version != LEARNER_VERSION:
         raise EvolutionConfigError(

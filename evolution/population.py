@@ -37,7 +37,7 @@ import numpy as np
 
 from amaze.agents.engine import BatchEngine
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR, check_deadline_factor
-from amaze.agents.robot import Robot, as_robot
+from amaze.agents.robot import IOType, Robot, as_robot
 from amaze.agents.tables import MazeTables, compile_mazes
 from amaze.evaluation.policy import EpisodeResults, run_episodes
 from amaze.maze import Maze, MazeSpec, as_mazes
@@ -52,10 +52,25 @@ __all__ = [
     "PopulationPolicy",
     "PopulationResult",
     "SplittablePopulation",
+    "fewest_steps",
 ]
 
 #: Fitness measures: the mean over an individual's episodes of one of these.
 FITNESS: tuple[str, ...] = ("paper_reward", "success", "pretty_reward")
+
+
+def fewest_steps(mazes: Sequence[Maze | MazeSpec | str], robot: Robot | str) -> int:
+    """The fewest env steps an individual can spend playing each of ``mazes`` once.
+
+    With discrete actions an episode lasts at least its maze's shortest path
+    (``len(solution) - 1`` steps); with continuous ones at least a step. A
+    generation of P individuals costs at least P times this: the smallest unit
+    of evolution, which a run starts only if its budget can pay it.
+    """
+    if as_robot(robot).outputs is not IOType.DISCRETE:
+        return len(mazes)
+    return sum(len(maze.solution) - 1 for maze in as_mazes(list(mazes)))
+
 
 #: Engines kept by an evaluator (one per population size).
 _MAX_ENGINES = 4

@@ -32,17 +32,17 @@ restart left).
 * ``progress.csv``: one row per generation: ``generation, steps, seconds,
   best, mean, champion, eval_seconds`` (best and mean fitness of the
   generation, the best fitness so far, the seconds spent playing episodes);
-* ``checkpoints/state.pkl``: the whole run state after a generation (the
+* ``checkpoints/state.npz``: the whole run state after a generation (the
   algorithm with its random generators, steps and seconds spent), written
   atomically after the first generation, then after the first generation that
   ends ``checkpoint_seconds`` (default 10) after the previous checkpoint, and
   after the last one (``checkpoint_seconds: 0``: after every generation). A
   checkpoint of a CMA-ES run with a large population weighs megabytes, and
   fast generations take milliseconds: writing one every generation would
-  cost more than the evolution. It is a pickle read back by a restricted
-  unpickler (:mod:`amaze.runs.checkpoint`, :data:`CHECKPOINT_ALLOWLIST`): a
-  file can only rebuild the classes of the run's own libraries, and reading
-  one runs no code from it;
+  cost more than the evolution. It is JSON plus arrays
+  (:mod:`amaze.runs.checkpoint`, with :func:`evolution.checkpoint.evolution_codec`):
+  a file can only rebuild the classes of the run's own libraries and cannot
+  name a function to call;
 * ``champion.npz``: the best individual so far, an agent file of
   :mod:`evolution.agent_file` (no pickle; ``amaze run --controller champion.npz``);
 * ``summary.json``: the champion on the standard evaluation suite
@@ -83,9 +83,10 @@ from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
 from evolution.backends import current_backend
-from evolution.config import CHECKPOINT_ALLOWLIST, EvolveConfig
+from evolution.checkpoint import evolution_codec
+from evolution.config import EvolveConfig
 from evolution.generations import GenerationLoop
-from evolution.population import EvaluationBackend
+from evolution.population import EvaluationBackend, fewest_steps
 
 __all__ = ["EvolutionRun", "EvolveConfig", "evolve", "resume"]
 
@@ -104,6 +105,8 @@ class _State:
     seconds: float = 0.0
     eval_seconds: float = 0.0
     version: int = CHECKPOINT_VERSION
+    #: The SHA-256 of the run's ``config.json`` (:attr:`~amaze.runs.lifecycle.Run.config_digest`).
+    config_sha256: str | None = None
 
 
 class EvolutionRun(GenerationLoop):
@@ -146,18 +149,27 @@ class EvolutionRun(GenerationLoop):
             make_algorithm(c.algo, c.algorithm, c.robot, c.seed)
         )  # bad options fail here
         self.backend  # noqa: B018 (and bad mazes here, before anything is written)
+        self.check_budget()
+
+    def generation_steps(self) -> tuple[int, str]:
+        """The population, each individual on the training mazes' rotations by shortest paths."""
+        c = self.config
+        population = len(self.state.algorithm.ask())
+        steps = population * fewest_steps(rotations(c.mazes), c.robot)
+        return steps, f"{population} individuals on {4 * len(c.mazes)} episodes"
 
     def restore(self) -> int | None:
         if not self.checkpoint.exists():
             return None
         state = read_checkpoint(
-            self.checkpoint, CHECKPOINT_ALLOWLIST, EvolutionConfigError, expected=_State
+            self.checkpoint, evolution_codec(_State), EvolutionConfigError, expected=_State
         )
         if state.version != CHECKPOINT_VERSION:
             raise EvolutionConfigError(
                 f"checkpoint {str(self.checkpoint)!r} is of version {state.version!r},"
                 f" not {CHECKPOINT_VERSION}"
             )
+        self.check_config_digest(state.config_sha256, f"checkpoint {str(self.checkpoint)!r}")
         champion_file = self.out / "champion.npz"
         if champion_file.exists() or champion_file.is_symlink():
             load_agent(champion_file)  # a damaged champion is refused here, by name
@@ -253,7 +265,8 @@ class EvolutionRun(GenerationLoop):
         )
 
     def save_checkpoint(self) -> None:
-        write_checkpoint(self.checkpoint, self.state)
+        self.state.config_sha256 = self.config_digest
+        write_checkpoint(self.checkpoint, self.state, evolution_codec(_State))
 
 
 def plot_progress(csv_path: Path, png_path: Path, config: EvolveConfig) -> None:

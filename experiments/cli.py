@@ -13,7 +13,9 @@
 again at any time: finished runs are kept, killed ones resume
 (:mod:`experiments.runner`). ``--backend ray`` runs each run as a Ray task
 on the cluster at ``--address`` (:mod:`amaze.runs.cluster`). Bad input
-prints one line ``error: ...`` and exits with status 2.
+prints one line ``error: ...`` and exits with status 2. ``report`` writes
+the report of the runs it can read and prints a ``warning: ...`` line for
+each run's file it cannot (:mod:`experiments.report`).
 """
 
 from __future__ import annotations
@@ -73,7 +75,7 @@ def _run(argv: Sequence[str]) -> int:
         print(format_status(*study_status(args.out)))
         return 0
     if args.command == "report":
-        path = write_report(args.out)
+        path = write_report(args.out, warn=_warn)
         print(f"report: {path}")
         return 0
     check_backend(args.backend, args.address)
@@ -91,6 +93,10 @@ def _run(argv: Sequence[str]) -> int:
     )
     print(format_status(*study_status(args.out)))
     return status
+
+
+def _warn(message: str) -> None:
+    print(f"warning: {message}", file=sys.stderr)
 
 
 def _interrupt(signum: int, frame: object) -> None:

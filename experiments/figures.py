@@ -10,26 +10,32 @@
   logs);
 * ``best-trajectories.png``: the best run's agent (by suite success, then
   R̄) in the 4 rotations of its target or evaluation maze.
+
+A run's file that cannot be read (a ``progress.csv`` that is not a progress
+log, a picture that is not one) leaves its part out of the figures and is
+reported through ``unreadable`` (see :func:`save_figures`); the others are
+drawn.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from PIL import Image, ImageDraw
 
+from amaze.errors import one_line
 from amaze.maze.render import load_font, save_picture
+from amaze.runs.config import read_json_object
 from amaze.runs.folder import write_bytes
 from experiments.runner import StudyFolder
-from experiments.study import Study
+from experiments.study import Study, StudyError
 
 __all__ = ["learning_curve", "save_figures"]
 
@@ -47,15 +53,29 @@ def learning_curve(folder: Path) -> dict[str, np.ndarray] | None:
     branch on its own maze (``success``, ``rbar``; its seconds are per
     branch, summed here); coevolution, the champion on validation mazes
     (``champion_success``); direct evolution, the champion's fitness (as R̄
-    when the fitness measure is R̄; no success). ``None`` without a log.
+    when the fitness measure is R̄; no success). ``None`` without a log;
+    :class:`~experiments.study.StudyError` naming the file for a log that
+    cannot be read (not UTF-8 text, not CSV, a missing column, a value that
+    is not a number).
     """
     path = folder / "progress.csv"
     try:
         rows = list(csv.DictReader(io.StringIO(path.read_text(encoding="utf-8"))))
-    except OSError:
+        return _curve(rows, folder) if rows else None
+    except FileNotFoundError:
         return None
-    if not rows:
-        return None
+    except (OSError, UnicodeError, csv.Error) as problem:
+        raise StudyError(
+            f"progress log {str(path)!r} cannot be read: {one_line(problem)}"
+        ) from None
+    except KeyError as problem:
+        raise StudyError(f"progress log {str(path)!r} has no column {problem}") from None
+    except (ValueError, TypeError) as problem:
+        raise StudyError(f"progress log {str(path)!r}: {one_line(problem)}") from None
+
+
+def _curve(rows: list[dict[str, Any]], folder: Path) -> dict[str, np.ndarray]:
+    """The curve of :func:`learning_curve` from the rows of a progress log."""
 
     def column(name: str) -> np.ndarray:
         return np.array(
@@ -75,8 +95,8 @@ def learning_curve(folder: Path) -> dict[str, np.ndarray] | None:
             curve["success"] = column("champion_success")
         elif "champion" in fields:
             try:
-                config = json.loads((folder / "config.json").read_text(encoding="utf-8"))
-            except (OSError, ValueError):
+                config = read_json_object(folder / "config.json", StudyError, "run config")
+            except StudyError:  # without its config, the fitness is not known to be R̄
                 config = {}
             if config.get("fitness") == "paper_reward":
                 curve["rbar"] = column("champion")
@@ -103,10 +123,21 @@ def _median_curve(curves: Sequence[dict[str, np.ndarray]], x_name: str, y_name: 
         return grid, np.nanmedian(np.vstack(stacked), axis=0)
 
 
+#: Hears of a run's file that cannot be read: the run's id, what is left out, why.
+Unreadable = Callable[[str, str, str], None]
+
+
 def save_figures(
-    folder: StudyFolder, study: Study, rows: Sequence[dict[str, Any]]
+    folder: StudyFolder,
+    study: Study,
+    rows: Sequence[dict[str, Any]],
+    unreadable: Unreadable | None = None,
 ) -> list[tuple[str, Path]]:
-    """Write the figures (see the module docstring); return their titles and paths."""
+    """Write the figures (see the module docstring); return their titles and paths.
+
+    A run's file that cannot be read is left out and ``unreadable`` hears of it.
+    """
+    heard: Unreadable = unreadable or (lambda run_id, what, reason: None)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -174,7 +205,11 @@ def save_figures(
     curves: dict[str, list[dict[str, np.ndarray]]] = {t: [] for t in treatments}
     for run in study.runs:
         if run.treatment in curves and (folder.run_folder(run) / "summary.json").is_file():
-            curve = learning_curve(folder.run_folder(run))
+            try:
+                curve = learning_curve(folder.run_folder(run))
+            except StudyError as problem:
+                heard(run.id, "its learning curve", one_line(problem))
+                continue
             if curve is not None:
                 curves[run.treatment].append(curve)
     signals = (("success", "success (as logged)"), ("rbar", "R̄ (as logged)"))
@@ -216,7 +251,11 @@ def save_figures(
 
     best = _best(rows)
     if best is not None:
-        strip = _trajectory_strip(folder.out / best["folder"], best)
+        try:
+            strip = _trajectory_strip(folder.out / best["folder"], best)
+        except StudyError as problem:
+            heard(Path(best["folder"]).name, "its trajectories", one_line(problem))
+            strip = None
         if strip is not None:
             path = save_picture(strip, out / "best-trajectories.png")
             written.append(("The best agent's trajectories", path))
@@ -239,11 +278,20 @@ def _best(rows: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
     return max(scored, key=lambda r: (r["success_rate"], r["normalized_reward"]))
 
 
+def _picture(path: Path) -> Image.Image:
+    """The picture in ``path`` as RGB; StudyError naming it when it is not a picture."""
+    try:
+        with Image.open(path) as image:
+            return image.convert("RGB")
+    except (OSError, ValueError, Image.DecompressionBombError) as problem:
+        raise StudyError(f"picture {str(path)!r} cannot be read: {one_line(problem)}") from None
+
+
 def _trajectory_strip(run_folder: Path, row: dict[str, Any]) -> Image.Image | None:
     pictures = sorted((run_folder / "trajectories").glob("*.png"))
     if not pictures:
         return None
-    images = [Image.open(p).convert("RGB") for p in pictures]
+    images = [_picture(p) for p in pictures]
     height = 260
     scaled = [im.resize((max(1, im.width * height // im.height), height)) for im in images]
     caption = 34

@@ -19,30 +19,39 @@
 Pairs are compared when they differ in one factor (trainer or algorithm)
 under the same condition: the comparisons a reader makes, and a family small
 enough for the correction to leave some power.
+
+A run's file that cannot be read (a damaged ``summary.json``, a
+``progress.csv`` that is not a progress log, a trajectory picture that is
+not a picture) does not stop the report of the others: what it would have
+given is left out, and the report says so, run by run, with the reason
+(:class:`LeftOut`: a section of ``report.md``, and a warning each for the
+command). A file of the study itself (``study.toml``, ``state.json``) that
+cannot be read is an error: without it there is no report to write.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import json
 import math
-from collections.abc import Sequence
-from dataclasses import asdict
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from amaze.errors import one_line
+from amaze.runs.config import read_json_object
 from amaze.runs.folder import write_bytes
 from amaze.runs.lifecycle import SUMMARY_FILE
 from experiments.paper import PAPER_CITATION, PAPER_TABLE3, paper_trainer
 from experiments.runner import StudyFolder
 from experiments.stats import Comparison, compare_pairs
-from experiments.study import PlannedRun, Study
+from experiments.study import PlannedRun, Study, StudyError
 
-__all__ = ["METRICS", "collect_rows", "table3", "write_report"]
+__all__ = ["METRICS", "LeftOut", "collect_rows", "read_summary", "table3", "write_report"]
 
 #: The metrics of Table 3, in the paper's order, with their labels.
 METRICS = {
@@ -74,22 +83,59 @@ RUN_COLUMNS = (
 )
 
 
+@dataclass(frozen=True)
+class LeftOut:
+    """Part of a run the report could not read, so left out: which run, what, and why."""
+
+    run: str
+    #: What is missing from the report: ``"its row"``, ``"its learning curve"``...
+    what: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"run {self.run}: {self.what} left out of the report: {self.reason}"
+
+
 def _number(value: Any) -> float:
     return (
         float(value) if isinstance(value, int | float) and not isinstance(value, bool) else math.nan
     )
 
 
-def collect_rows(folder: StudyFolder, study: Study) -> list[dict[str, Any]]:
-    """One row per finished run of ``study`` in ``folder`` (see :data:`RUN_COLUMNS`)."""
+def read_summary(path: Path) -> dict[str, Any]:
+    """The summary in ``path``: a JSON object with its ``env_steps``; StudyError naming it else.
+
+    The other figures are read as numbers where they are numbers (a missing
+    or odd one is an empty cell, as for a trainer that does not report it).
+    """
+    summary = read_json_object(path, StudyError, "summary")
+    steps = summary.get("env_steps")
+    if isinstance(steps, bool) or not isinstance(steps, int | float) or not 0 <= steps < math.inf:
+        raise StudyError(f"summary {str(path)!r}: env_steps {steps!r} is not a number of steps")
+    return summary
+
+
+def collect_rows(
+    folder: StudyFolder, study: Study, left_out: list[LeftOut] | None = None
+) -> list[dict[str, Any]]:
+    """One row per finished run of ``study`` in ``folder`` (see :data:`RUN_COLUMNS`).
+
+    A run whose summary cannot be read has no row; it is added to ``left_out``.
+    """
     state = folder.state()
     rows = []
     for run in study.runs:
         path = folder.run_folder(run) / SUMMARY_FILE
         if not path.is_file():
             continue
-        summary = json.loads(path.read_text(encoding="utf-8"))
-        rates = summary.get("input_rates") or {}
+        try:
+            summary = read_summary(path)
+        except StudyError as problem:
+            if left_out is not None:
+                left_out.append(LeftOut(run.id, "its row", one_line(problem)))
+            continue
+        rates = summary.get("input_rates")
+        rates = rates if isinstance(rates, dict) else {}
         wall = _number(state["wall_seconds"].get(run.id))
         threads = state["threads"].get(run.id)
         rows.append(
@@ -342,37 +388,52 @@ def _compute(rows: Sequence[dict[str, Any]], study: Study) -> str:
             lines.append(f"| {treatment} | 0 | – | – | – | – |")
             continue
         steps = float(np.median([r["env_steps"] for r in mine]))
-        seconds = float(np.nanmedian([r["seconds"] for r in mine]))
+        seconds = _statistic([r["seconds"] for r in mine if not math.isnan(r["seconds"])], "median")
+        shown = "–" if math.isnan(seconds) else f"{seconds:.1f}"  # a summary without seconds
         wall = float(np.nansum([r["wall_seconds"] for r in mine]))
         core = float(np.nansum([r["core_seconds"] for r in mine]))
         lines.append(
-            f"| {treatment} | {len(mine)} | {steps:,.0f} | {seconds:.1f} | {wall:.0f}"
-            f" | {core:.0f} |"
+            f"| {treatment} | {len(mine)} | {steps:,.0f} | {shown} | {wall:.0f} | {core:.0f} |"
         )
     return "\n".join(lines)
 
 
-def write_report(out: str | Path) -> Path:
-    """Write ``report.md``, ``runs.csv``, ``tests.csv`` and ``figures/`` in the study's folder."""
+def write_report(out: str | Path, warn: Callable[[str], None] | None = None) -> Path:
+    """Write ``report.md``, ``runs.csv``, ``tests.csv`` and ``figures/`` in the study's folder.
+
+    ``warn`` hears of each part of a run left out (:class:`LeftOut`), which
+    ``report.md`` lists too.
+    """
     from experiments.figures import save_figures
 
     folder = StudyFolder(out)
     study = folder.study()
-    rows = collect_rows(folder, study)
+    left_out: list[LeftOut] = []
+    rows = collect_rows(folder, study, left_out)
     write_bytes(folder.out / "runs.csv", _csv(rows, RUN_COLUMNS))
     found = comparisons(rows, study)
     write_bytes(folder.out / "tests.csv", _csv(_test_rows(found), TEST_COLUMNS))
-    figures = save_figures(folder, study, rows)
+
+    def unreadable(run_id: str, what: str, reason: str) -> None:
+        left_out.append(LeftOut(run_id, what, reason))
+
+    figures = save_figures(folder, study, rows, unreadable)
+    for part in left_out:
+        if warn is not None:
+            warn(str(part))
     conditions = list(dict.fromkeys(r.condition for r in study.runs))
+    unread = sum(part.what == "its row" for part in left_out)
+    finished = f"{len(rows)} of {len(study.runs)} runs finished"
+    if unread:
+        finished += f" and read ({unread} more finished but cannot be read: see 'Left out')"
     parts = [
         f"# Study `{study.name}`: report",
         "",
         study.description.strip(),
         "",
-        f"{len(rows)} of {len(study.runs)} runs finished; written"
-        f" {datetime.now(UTC).isoformat(timespec='seconds')} from their `summary.json` files"
-        " (`runs.csv`). Every agent is scored on the standard evaluation suite (18 mazes x 4"
-        " rotations) and by the input-recognition test.",
+        f"{finished}; written {datetime.now(UTC).isoformat(timespec='seconds')} from their"
+        " `summary.json` files (`runs.csv`). Every agent is scored on the standard evaluation"
+        " suite (18 mazes x 4 rotations) and by the input-recognition test.",
         "",
     ]
     for condition in conditions:
@@ -414,6 +475,8 @@ def write_report(out: str | Path) -> Path:
     ]
     for title, path in figures:
         parts += [f"### {title}", "", f"![{title}]({path.relative_to(folder.out).as_posix()})", ""]
+    if left_out:
+        parts += ["## Left out", "", _left_out(left_out), ""]
     parts += [
         "## Compute",
         "",
@@ -427,6 +490,13 @@ def write_report(out: str | Path) -> Path:
     path = folder.out / "report.md"
     write_bytes(path, "\n".join(parts).encode("utf-8"))
     return path
+
+
+def _left_out(left_out: Sequence[LeftOut]) -> str:
+    """The parts of runs the report could not read, one a line, with the reason."""
+    lines = ["Files of these runs cannot be read; what they would have given is not above:", ""]
+    lines += [f"* `{part.run}`: {part.what}: {part.reason}" for part in left_out]
+    return "\n".join(lines)
 
 
 def _budget_words(run: PlannedRun) -> str:

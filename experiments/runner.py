@@ -9,7 +9,9 @@ out in ``DIR``:
 * ``configs/<id>.json``: the config each run starts from;
 * ``logs/<id>.txt``: what each run printed;
 * ``state.json``: the runner's process, the runs in progress, the failures,
-  and each run's wall-clock seconds and threads (its compute).
+  and each run's wall-clock seconds and threads (its compute);
+* ``runner.lock``: the folder's lock (:class:`StudyLock`), held by the
+  runner and inherited by its workers.
 
 Runs go at most ``workers`` at a time, each in its own process
 (:mod:`experiments.worker`) with an equal share of the cores. A run with a
@@ -20,6 +22,17 @@ stops the workers, which resume next time: a study can be stopped and
 restarted at any moment without losing a finished run. One progress bar
 covers the whole study: each run counts as the fraction of its budget it
 has spent (read from its ``progress.csv``), with an ETA.
+
+One runner at a time: the runner holds ``runner.lock`` (``flock``) and its
+workers inherit it, so the lock lasts while the runner or any of its workers
+lives, and the kernel releases it when the last of them dies, however it
+died. A runner started on a folder whose lock is held is refused, naming the
+holder, rather than train beside it into the same run folders; a lock left
+by processes that are gone is simply taken. The workers also die with their
+runner (:func:`amaze.runs.launchers.die_with_parent`): a runner killed
+outright (``kill -9``) leaves nothing running, and its killed runs resume at
+the next ``run``. A worker also locks its run folder
+(:mod:`experiments.worker`), so that no two processes ever train in one.
 
 With ``backend="ray"`` (``--backend ray``) each run is a Ray task of one CPU
 running the same worker command (:mod:`amaze.runs.ray_tasks`), at most
@@ -35,13 +48,15 @@ per run on Ray.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import fcntl
 import io
 import json
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -49,19 +64,24 @@ from typing import Any
 
 from amaze.errors import UsageError
 from amaze.runs.cluster import check_backend, cluster_cpus, connect
+from amaze.runs.config import read_json_object
 from amaze.runs.folder import write_bytes, write_json
 from amaze.runs.launchers import Job, Launcher, ProcessLauncher, run_jobs
 from amaze.runs.lifecycle import CONFIG_FILE, SUMMARY_FILE
 from amaze.runs.ray_tasks import RayLauncher
-from amaze.validation import check_integer
-from experiments.study import PlannedRun, Study, StudyError, parse_study
+from amaze.validation import check_integer, parse_json
+from experiments.study import PlannedRun, Study, StudyError, parse_study, read_study_text
 
-__all__ = ["RunStatus", "StudyFolder", "run_study", "study_status"]
+__all__ = ["RunStatus", "StudyFolder", "StudyLock", "run_study", "study_status"]
 
 STUDY_FILE = "study.toml"
 STATE_FILE = "state.json"
+LOCK_FILE = "runner.lock"
 #: Seconds between two looks at the runs.
 POLL_SECONDS = 0.5
+#: Seconds a runner waits for a held lock before it is refused (``status``
+#: holds it for an instant while it looks).
+LOCK_WAIT_SECONDS = 1.0
 
 
 @dataclass(frozen=True)
@@ -93,7 +113,8 @@ class StudyFolder:
         path = self.out / STUDY_FILE
         if not path.is_file():
             raise UsageError(f"{str(self.out)!r} holds no study (no {STUDY_FILE})")
-        return parse_study(path.read_text(encoding="utf-8"), f"study file {str(path)!r}")
+        source = f"study file {str(path)!r}"
+        return parse_study(read_study_text(path, source), source)
 
     def adopt(self, study: Study) -> None:
         """Make the folder ``study``'s, or check that it is already."""
@@ -111,16 +132,20 @@ class StudyFolder:
         write_bytes(path, study.text.encode("utf-8"))
 
     def state(self) -> dict[str, Any]:
+        """The runner's records (``state.json``), checked; empty ones for a new folder.
+
+        A damaged file is refused (:class:`StudyError` naming it and the
+        field) rather than half-read: its failures and compute figures are
+        what ``status``, ``run`` and the report say.
+        """
         path = self.out / STATE_FILE
-        if not path.is_file():
+        if not path.exists():
             return {"runner": None, "running": [], "failed": {}, "wall_seconds": {}, "threads": {}}
-        try:
-            state = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as problem:
-            raise StudyError(f"runner state {str(path)!r} is damaged: {problem}") from None
-        for key, empty in (("running", []), ("failed", {}), ("wall_seconds", {}), ("threads", {})):
-            state.setdefault(key, empty)
-        return state
+        return checked_state(read_json_object(path, StudyError, "runner state"), path)
+
+    def lock(self) -> StudyLock:
+        """The folder's lock (not taken)."""
+        return StudyLock(self.out / LOCK_FILE)
 
     def save_state(self, state: dict[str, Any]) -> None:
         write_json(self.out / STATE_FILE, state)
@@ -142,37 +167,215 @@ def spent_fraction(folder: Path, run: PlannedRun) -> float:
     (``seconds``, summed over the rows of a curriculum, whose rows are branches).
     """
     path = folder / "progress.csv"
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError:
+    try:  # a log that cannot be read counts as nothing spent: the bar is only a guide
+        rows = list(csv.DictReader(io.StringIO(path.read_text(encoding="utf-8"))))
+    except (OSError, UnicodeError, csv.Error):
         return 0.0
-    rows = list(csv.DictReader(io.StringIO(text)))
     if not rows:
         return 0.0
     try:
         if run.budget_steps:
-            return min(1.0, float(rows[-1]["steps"]) / run.budget_steps)
-        if run.budget_seconds:
+            fraction = float(rows[-1]["steps"]) / run.budget_steps
+        elif run.budget_seconds:
             if "branches" in rows[-1]:
                 seconds = sum(float(row["seconds"]) for row in rows)
             else:
                 seconds = float(rows[-1]["seconds"])
-            return min(1.0, seconds / run.budget_seconds)
-    except (KeyError, ValueError):
+            fraction = seconds / run.budget_seconds
+        else:
+            return 0.0
+    except (KeyError, ValueError, TypeError):
         return 0.0
-    return 0.0
+    return min(1.0, fraction) if fraction >= 0 else 0.0
 
 
-def _alive(pid: Any) -> bool:
-    if not isinstance(pid, int) or pid <= 0:
+#: What each key of ``state.json`` holds: a list or an object, and its items' types and name.
+STATE_KEYS: dict[str, tuple[type, tuple[type, ...], str]] = {
+    "running": (list, (str,), "a run's id"),
+    "failed": (dict, (dict,), "an object"),
+    "wall_seconds": (dict, (int, float), "a number"),
+    "threads": (dict, (int,), "an integer"),
+}
+
+
+def checked_state(state: dict[str, Any], path: Path) -> dict[str, Any]:
+    """``state`` read from ``path`` with every key of :data:`STATE_KEYS`; StudyError otherwise."""
+
+    def bad(problem: str) -> StudyError:
+        return StudyError(
+            f"runner state {str(path)!r}: {problem} (delete the file to start the runner's"
+            " records afresh: finished runs are kept)"
+        )
+
+    runner = state.setdefault("runner", None)
+    if runner is not None and not isinstance(runner, dict):
+        raise bad(f"runner {_cut(runner)} is neither null nor an object")
+    for key, (kind, items, named) in STATE_KEYS.items():
+        value = state.setdefault(key, kind())
+        if not isinstance(value, kind):
+            raise bad(f"{key} {_cut(value)} is not {'a list' if kind is list else 'an object'}")
+        for item in value if kind is list else value.values():
+            if isinstance(item, bool) or not isinstance(item, items):
+                raise bad(f"{key} holds {_cut(item)}, not {named}")
+    return state
+
+
+def _cut(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a message."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[: limit - 4]}...{text[-1]}"
+
+
+def process_start(pid: int) -> int | None:
+    """When process ``pid`` started (clock ticks after boot, ``/proc``), ``None`` if unknown.
+
+    With the pid, it names a process for good: a pid is reused, a pid and
+    its start time are not.
+    """
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return int(fields[19])  # field 22 of stat(5); the name and pid come before ")"
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def process_alive(pid: Any, start: Any = None) -> bool:
+    """Whether process ``pid`` lives and, when ``start`` is given, started then (not a reuse)."""
+    if not isinstance(pid, int) or isinstance(pid, bool) or pid <= 0:
         return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True
-    return True
+        pass
+    except OverflowError:
+        return False
+    return start is None or process_start(pid) in (None, start)
+
+
+def _this_process() -> dict[str, Any]:
+    """This process, as ``state.json`` and ``runner.lock`` record a runner."""
+    return {"pid": os.getpid(), "start": process_start(os.getpid()), "started": _now()}
+
+
+class StudyLock:
+    """The lock of a study's folder: ``flock`` on ``runner.lock``.
+
+    The runner takes it and its workers inherit it (their process holds the
+    same open file), so it is held while the runner or any of its workers
+    lives and released by the kernel when the last of them ends, however it
+    ends: there is never a stale lock to clean. The file holds the runner's
+    pid and start time, only to name it in messages.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        #: The open file of the lock while this process holds it.
+        self.fd: int | None = None
+
+    def acquire(self, folder: str) -> None:
+        """Take the lock; :class:`UsageError` naming its holder when someone holds it.
+
+        A file system without locks (``ENOLCK``...) is let be: the runner
+        recorded in ``state.json`` is then all that keeps a second one out.
+        """
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        deadline = time.monotonic() + LOCK_WAIT_SECONDS
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() < deadline:
+                    time.sleep(0.05)
+                    continue
+                os.close(fd)
+                raise UsageError(self._held_message(folder)) from None
+            except OSError:
+                os.close(fd)
+                return
+        self.fd = fd
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, json.dumps(_this_process()).encode("utf-8"), 0)
+
+    def release(self) -> None:
+        """Let the lock go (it lasts while a worker that inherited it lives)."""
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def held(self) -> bool | None:
+        """Whether another process holds the lock now; ``None`` when that cannot be told."""
+        try:
+            fd = os.open(self.path, os.O_RDONLY | os.O_CLOEXEC)
+        except FileNotFoundError:
+            return False
+        except OSError:
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        except OSError:
+            return None
+        finally:
+            os.close(fd)  # closing the file lets a lock it took go
+        return False
+
+    def holder(self) -> dict[str, Any]:
+        """The runner the file names (``{}`` when it names none)."""
+        try:
+            holder = parse_json(self.path.read_bytes(), f"lock {str(self.path)!r}")
+        except (OSError, ValueError):
+            return {}
+        return holder if isinstance(holder, dict) else {}
+
+    def _held_message(self, folder: str) -> str:
+        holder = self.holder()
+        pid, since = _cut(holder.get("pid"), 20), str(holder.get("started"))[:40]
+        if process_alive(holder.get("pid"), holder.get("start")):
+            return f"{folder!r} is being run by process {pid} (since {since}); stop it first"
+        return (
+            f"{folder!r} is locked by a worker of a runner that is gone (process {pid}, since"
+            f" {since}): a run still trains there; stop it first (its log in logs/ names its"
+            " process)"
+        )
+
+
+@contextlib.contextmanager
+def locked(folder: StudyFolder) -> Iterator[StudyLock]:
+    """The folder's lock, held in the block (see :class:`StudyLock`)."""
+    lock = folder.lock()
+    lock.acquire(str(folder.out))
+    try:
+        yield lock
+    finally:
+        lock.release()
+
+
+def runner_active(folder: StudyFolder, state: dict[str, Any]) -> bool:
+    """Whether a runner (or a worker of one) works in ``folder`` now, other than this process.
+
+    The lock says; where it cannot, the runner ``state.json`` records, if
+    that process still lives.
+    """
+    held = folder.lock().held()
+    if held is not None:
+        return held
+    runner = state.get("runner") or {}
+    pid = runner.get("pid")
+    return pid != os.getpid() and process_alive(pid, runner.get("start"))
+
+
+def failed_runs(folder: StudyFolder, study: Study, state: dict[str, Any]) -> list[PlannedRun]:
+    """The runs that failed the last time they ran and have not finished since.
+
+    A finished run (its ``summary.json``, written last) is done, whatever
+    ``state.json`` still says of an earlier attempt: ``status`` and ``run``'s
+    exit status both go by this.
+    """
+    return [run for run in study.runs if run.id in state["failed"] and not folder.finished(run)]
 
 
 def study_status(out: str | os.PathLike) -> tuple[Study, list[RunStatus]]:
@@ -180,8 +383,8 @@ def study_status(out: str | os.PathLike) -> tuple[Study, list[RunStatus]]:
     folder = StudyFolder(out)
     study = folder.study()
     state = folder.state()
-    runner = state.get("runner") or {}
-    active = _alive(runner.get("pid")) and runner.get("pid") != os.getpid()
+    active = runner_active(folder, state)
+    failed = {run.id for run in failed_runs(folder, study, state)}
     statuses = []
     for run in study.runs:
         if folder.finished(run):
@@ -192,7 +395,7 @@ def study_status(out: str | os.PathLike) -> tuple[Study, list[RunStatus]]:
             statuses.append(
                 RunStatus(run, "running", f"{100 * folder.fraction(run):.0f} % of its budget")
             )
-        elif run.id in state["failed"]:
+        elif run.id in failed:
             failure = state["failed"][run.id]
             statuses.append(
                 RunStatus(
@@ -229,35 +432,76 @@ def run_study(
     See the module docstring: ``backend="ray"`` runs each run as a Ray task
     on the cluster at ``address``. Raises :class:`~amaze.errors.UsageError`
     for a folder that holds another study or is being run by another
-    process, and for a cluster that cannot be reached.
+    process (or a worker of one), and for a cluster that cannot be reached.
+    The exit status says what ``status`` says: 1 when a run of the study is
+    failed (:func:`failed_runs`).
     """
-    from tqdm import tqdm
-
     check_backend(backend, address)
     if workers is not None:
         workers = check_integer("--workers", workers, minimum=1, maximum=256, error=UsageError)
     ray = connect(address) if backend == "ray" else None
     folder = StudyFolder(out)
     folder.adopt(study)
-    state = folder.state()
+    with locked(folder) as lock:
+        state = folder.state()
+        if lock.fd is None:  # no lock on this file system: the runner on record decides
+            _refuse_recorded_runner(folder, state)
+        _forget_finished_failures(folder, study, state)
+        waiting = [run for run in study.runs if not folder.finished(run)]
+        launcher: Launcher
+        if ray is not None:
+            launcher = RayLauncher(ray)
+            workers = workers or cluster_cpus(ray)
+        else:
+            workers = workers or max(1, os.cpu_count() or 1)
+            inherited = () if lock.fd is None else (lock.fd,)
+            launcher = ProcessLauncher(min(workers, max(1, len(waiting))), pass_fds=inherited)
+        state.update({"runner": {**_this_process(), "backend": backend}, "running": []})
+        folder.save_state(state)
+        try:
+            _run_waiting(study, folder, state, launcher, waiting, workers, progress_bar, python)
+        finally:
+            state["running"] = []
+            state["runner"] = None
+            folder.save_state(state)
+    return 1 if failed_runs(folder, study, state) else 0
+
+
+def _refuse_recorded_runner(folder: StudyFolder, state: dict[str, Any]) -> None:
+    """Refuse the folder when the runner ``state.json`` names still lives.
+
+    Only where the folder cannot be locked: a lock taken says for sure that no
+    runner works there, where a pid on record may have been reused since.
+    """
     runner = state.get("runner") or {}
-    if _alive(runner.get("pid")) and runner.get("pid") != os.getpid():
+    pid = runner.get("pid")
+    if pid != os.getpid() and process_alive(pid, runner.get("start")):
         raise UsageError(
-            f"{str(folder.out)!r} is being run by process {runner['pid']} (since"
+            f"{str(folder.out)!r} is being run by process {pid} (since"
             f" {runner.get('started')}); stop it first"
         )
-    waiting = [run for run in study.runs if not folder.finished(run)]
-    launcher: Launcher
-    if ray is not None:
-        launcher = RayLauncher(ray)
-        workers = workers or cluster_cpus(ray)
-    else:
-        workers = workers or max(1, os.cpu_count() or 1)
-        launcher = ProcessLauncher(min(workers, max(1, len(waiting))))
-    state.update(
-        {"runner": {"pid": os.getpid(), "started": _now(), "backend": backend}, "running": []}
-    )
-    folder.save_state(state)
+
+
+def _forget_finished_failures(folder: StudyFolder, study: Study, state: dict[str, Any]) -> None:
+    """Drop the failures of runs that have finished since (their summary says they are done)."""
+    for run in study.runs:
+        if run.id in state["failed"] and folder.finished(run):
+            del state["failed"][run.id]
+
+
+def _run_waiting(
+    study: Study,
+    folder: StudyFolder,
+    state: dict[str, Any],
+    launcher: Launcher,
+    waiting: list[PlannedRun],
+    workers: int,
+    progress_bar: bool,
+    python: str,
+) -> None:
+    """Run ``waiting``, keeping ``state`` and the progress bar up to date as runs start and end."""
+    from tqdm import tqdm
+
     started_at: dict[str, float] = {}
     done = len(study.runs) - len(waiting)
     bar = tqdm(
@@ -293,7 +537,7 @@ def run_study(
     def ended(run: PlannedRun, code: int) -> None:
         nonlocal done
         spent(run)
-        if code == 0 and folder.finished(run):
+        if folder.finished(run):  # its summary is written last: done, whatever the exit
             state["failed"].pop(run.id, None)
             done += 1
         else:
@@ -324,12 +568,7 @@ def run_study(
             poll_seconds=POLL_SECONDS,
         )
     finally:
-        state["running"] = []
-        state["runner"] = None
-        folder.save_state(state)
         bar.close()
-    failed = [run_id for run_id in state["failed"] if run_id in {r.id for r in study.runs}]
-    return 1 if failed else 0
 
 
 def format_status(study: Study, statuses: Sequence[RunStatus]) -> str:

@@ -30,21 +30,28 @@ same form is a study::
 A *treatment* is a (trainer, algorithm, condition) cell, where the
 condition is the budget (and the robot, when the study has several); each
 treatment runs once per seed. Every run's config is built and checked by its trainer's config class
-when the study is read, so a bad study fails before anything runs, with a
-message naming the file and the run.
+when the study is read, and so are a curriculum's curator options (by
+building its curator), so a bad study fails before anything runs, with a
+message naming the file and the run. Checks that cost nothing come first:
+the file's nesting (at most :data:`MAX_DEPTH`), the seeds (``0 .. 2**32 - 1``,
+what a run's seed may be) and the number of runs, counted from the grid
+before a single run is built (at most :data:`MAX_RUNS`).
 """
 
 from __future__ import annotations
 
 import copy
+import json
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
 from amaze.errors import AmazeError, UsageError
+from amaze.runs.config import MAX_SEED
+from amaze.validation import nests_within
 from experiments.trainers import (
     ALGORITHMS,
     EVOLUTION_ALGORITHMS,
@@ -64,6 +71,13 @@ STUDY_KEYS = frozenset(
 )
 #: Most runs in one study.
 MAX_RUNS = 10_000
+#: Deepest nesting of tables and arrays in a study file. A study nests a few
+#: levels (``options.ppo.hyperparameters``); its runs' configs are JSON files,
+#: read back with a limit of their own (:data:`amaze.validation.MAX_JSON_DEPTH`).
+MAX_DEPTH = 32
+
+#: How a value's problem becomes the error naming the study file.
+Bad = Callable[[str], "StudyError"]
 
 
 class StudyError(AmazeError):
@@ -141,24 +155,32 @@ def load_study(name_or_path: str | Path) -> Study:
             raise UsageError(
                 f"no study {text_name!r}: neither a file nor one of {', '.join(study_names())}"
             )
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as problem:
-            raise StudyError(f"study file {text_name!r} cannot be read: {problem}") from None
         source = f"study file {text_name!r}"
+        text = read_study_text(path, source)
     return parse_study(text, source)
+
+
+def read_study_text(path: Path, source: str) -> str:
+    """The text of the study file ``path``; :class:`StudyError` naming ``source`` otherwise."""
+    try:
+        data = path.read_bytes()
+    except OSError as problem:
+        raise StudyError(f"{source} cannot be read: {problem.strerror or problem}") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as problem:
+        raise StudyError(
+            f"{source} is not UTF-8 text ({problem.reason} at byte {problem.start})"
+        ) from None
 
 
 def parse_study(text: str, source: str = "study") -> Study:
     """The study in the TOML ``text``; ``source`` names it in error messages."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as problem:
-        raise StudyError(f"{source} is not valid TOML: {problem}") from None
 
     def bad(message: str) -> StudyError:
         return StudyError(f"{source}: {message}")
 
+    data = _toml(text, source, bad)
     unknown = set(data) - STUDY_KEYS
     if unknown:
         raise bad(
@@ -171,37 +193,54 @@ def parse_study(text: str, source: str = "study") -> Study:
     if not isinstance(description, str):
         raise bad(f"description {description!r} is not a string")
     seeds = _seeds(data.get("seeds", 1), bad)
-    robots = data.get("robot", "DD")
-    robots = [robots] if isinstance(robots, str) else robots
-    if not isinstance(robots, list) or not robots or not all(isinstance(r, str) for r in robots):
-        raise bad(f"robot {data.get('robot')!r} is not a robot or a list of robots")
-    if len(set(robots)) != len(robots):
-        raise bad(f"robot {robots} names one twice")
+    robots = _robots(data.get("robot", "DD"), bad)
     trainers = _names(data.get("trainers"), "trainers", TRAINERS, bad)
     algorithms = _names(data.get("algorithms"), "algorithms", ALGORITHMS, bad)
     budgets = _budgets(data.get("budgets"), bad)
-    options = _options(data.get("options", {}), trainers, algorithms, bad)
     excluded = _excluded(data.get("exclude", []), bad)
+    cells = [(t, a) for t in trainers for a in algorithms if (t, a) not in excluded]
+    _check_size(len(robots), len(budgets), len(cells), len(seeds), bad)
+    options = _options(data.get("options", {}), trainers, algorithms, bad)
+    curators = _CuratorCheck(bad)
     runs = []
     for robot in robots:
         shown = robot if len(robots) > 1 else None
         for budget_name, budget in budgets.items():
-            for trainer in trainers:
-                for algorithm in algorithms:
-                    if (trainer, algorithm) in excluded:
-                        continue
-                    for seed in seeds:
-                        config = _config(trainer, algorithm, budget, robot, seed, options)
-                        run = PlannedRun(trainer, algorithm, budget_name, seed, config, shown)
-                        runs.append(_checked(run, bad))
-    if not runs:
-        raise bad("the grid holds no run (every cell is excluded)")
-    if len(runs) > MAX_RUNS:
-        raise bad(f"{len(runs)} runs (at most {MAX_RUNS})")
+            for trainer, algorithm in cells:
+                for seed in seeds:
+                    config = _config(trainer, algorithm, budget, robot, seed, options)
+                    run = PlannedRun(trainer, algorithm, budget_name, seed, config, shown)
+                    runs.append(_checked(run, bad, curators))
     return Study(name.strip(), description, source, text, tuple(runs))
 
 
-def _seeds(value: Any, bad: Any) -> list[int]:
+def _toml(text: str, source: str, bad: Bad) -> dict[str, Any]:
+    """The TOML document ``text``, nested at most :data:`MAX_DEPTH` deep."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as problem:
+        raise StudyError(f"{source} is not valid TOML: {problem}") from None
+    except RecursionError:  # the parser recurses once per level
+        raise bad(f"tables or arrays nest more than {MAX_DEPTH} deep") from None
+    if not nests_within(data, MAX_DEPTH):
+        raise bad(f"tables or arrays nest more than {MAX_DEPTH} deep")
+    return data
+
+
+def _check_size(robots: int, budgets: int, cells: int, seeds: int, bad: Bad) -> None:
+    """Refuse an empty grid, or one of more than :data:`MAX_RUNS` runs, before building any."""
+    if not cells:
+        raise bad("the grid holds no run (every cell is excluded)")
+    count = robots * budgets * cells * seeds
+    if count > MAX_RUNS:
+        raise bad(
+            f"{count:,} runs ({robots} robot(s) x {budgets} budget(s) x {cells} trainer/algorithm"
+            f" cell(s) x {seeds} seed(s)): a study holds at most {MAX_RUNS:,}"
+        )
+
+
+def _seeds(value: Any, bad: Bad) -> list[int]:
+    """Seeds ``0 .. value - 1`` (a number of replicates), or the list of seeds given."""
     if isinstance(value, int) and not isinstance(value, bool):
         if not 1 <= value <= 1000:
             raise bad(f"seeds {value} is not in 1..1000 (replicates)")
@@ -209,26 +248,45 @@ def _seeds(value: Any, bad: Any) -> list[int]:
     if (
         isinstance(value, list)
         and value
-        and all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value)
+        and all(isinstance(s, int) and not isinstance(s, bool) for s in value)
     ):
+        for seed in value:
+            if not 0 <= seed <= MAX_SEED:
+                raise bad(f"seed {seed} is not in 0..{MAX_SEED} (2**32 - 1)")
         if len(set(value)) != len(value):
-            raise bad(f"seeds {value} repeats a seed")
+            raise bad(f"seeds {_shown(value)} repeats a seed")
         return list(value)
-    raise bad(f"seeds {value!r} is neither a number of replicates nor a list of seeds")
+    raise bad(f"seeds {_shown(value)} is neither a number of replicates nor a list of seeds")
 
 
-def _names(value: Any, what: str, known: Any, bad: Any) -> list[str]:
+def _shown(value: Any, limit: int = 80) -> str:
+    """``repr(value)``, cut to ``limit`` characters: a message names a value, not a whole list."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[: limit - 5]}...{text[-1]}"
+
+
+def _robots(value: Any, bad: Bad) -> list[str]:
+    """The study's robots: one robot string or a list of distinct ones."""
+    robots = [value] if isinstance(value, str) else value
+    if not isinstance(robots, list) or not robots or not all(isinstance(r, str) for r in robots):
+        raise bad(f"robot {_shown(value)} is not a robot or a list of robots")
+    if len(set(robots)) != len(robots):
+        raise bad(f"robot {robots} names one twice")
+    return robots
+
+
+def _names(value: Any, what: str, known: Any, bad: Bad) -> list[str]:
     if not isinstance(value, list) or not value:
-        raise bad(f"{what} {value!r} is not a non-empty list")
+        raise bad(f"{what} {_shown(value)} is not a non-empty list")
     for name in value:
-        if name not in known:
-            raise bad(f"{what}: {name!r} is not one of {', '.join(known)}")
+        if not isinstance(name, str) or name not in known:
+            raise bad(f"{what}: {_shown(name)} is not one of {', '.join(known)}")
     if len(set(value)) != len(value):
         raise bad(f"{what} {value} names one twice")
     return list(value)
 
 
-def _budgets(value: Any, bad: Any) -> dict[str, dict[str, Any]]:
+def _budgets(value: Any, bad: Bad) -> dict[str, dict[str, Any]]:
     if not isinstance(value, dict) or not value:
         raise bad(f"budgets {value!r} is not a table of named budgets")
     budgets = {}
@@ -245,7 +303,7 @@ def _budgets(value: Any, bad: Any) -> dict[str, dict[str, Any]]:
     return budgets
 
 
-def _options(value: Any, trainers: list[str], algorithms: list[str], bad: Any) -> dict[str, Any]:
+def _options(value: Any, trainers: list[str], algorithms: list[str], bad: Bad) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise bad(f"options {value!r} is not a table")
     for key, table in value.items():
@@ -264,11 +322,14 @@ def _options(value: Any, trainers: list[str], algorithms: list[str], bad: Any) -
     return value
 
 
-def _excluded(value: Any, bad: Any) -> set[tuple[str, str]]:
+def _excluded(value: Any, bad: Bad) -> set[tuple[str, str]]:
     if not isinstance(value, list) or not all(
-        isinstance(e, dict) and set(e) == {"trainer", "algorithm"} for e in value
+        isinstance(e, dict)
+        and set(e) == {"trainer", "algorithm"}
+        and all(isinstance(name, str) for name in e.values())
+        for e in value
     ):
-        raise bad(f"exclude {value!r} is not a list of {{trainer, algorithm}} tables")
+        raise bad(f"exclude {_shown(value)} is not a list of {{trainer, algorithm}} tables")
     return {(e["trainer"], e["algorithm"]) for e in value}
 
 
@@ -299,8 +360,45 @@ def _config(
     return config
 
 
-def _checked(run: PlannedRun, bad: Any) -> PlannedRun:
-    """``run`` with its config as its trainer's config class checks and completes it."""
+class _CuratorCheck:
+    """Builds the curator of each distinct curriculum of a study once: its options are checked.
+
+    A curator refuses bad options when it is built (the registry of
+    :mod:`amaze.curriculum.curators`); the same options with another seed
+    are as good, so each (curator, options, target, stages, branches, robot)
+    is built once, not once per run.
+    """
+
+    def __init__(self, bad: Bad) -> None:
+        self.bad = bad
+        self.seen: set[str] = set()
+
+    def __call__(self, run_id: str, config: Any) -> None:
+        """Build the curator of ``config`` (a checked curriculum config) unless built already."""
+        if not getattr(config, "is_curriculum", False):
+            return
+        from amaze.curriculum.curators import make_curator
+
+        context = config.curator_context()
+        key = json.dumps(
+            [config.curator, context.target, context.stages, context.branches, context.robot,
+             dict(context.options)],
+            sort_keys=True, default=repr,
+        )  # fmt: skip
+        if key in self.seen:
+            return
+        try:
+            make_curator(config.curator, context)
+        except (ValueError, TypeError) as problem:
+            raise self.bad(f"run {run_id}: curator_options: {problem}") from None
+        self.seen.add(key)
+
+
+def _checked(run: PlannedRun, bad: Bad, curators: _CuratorCheck) -> PlannedRun:
+    """``run`` with its config as its trainer's config class checks and completes it.
+
+    A curriculum's curator is built too (``curators``), checking its options.
+    """
     config_class = run_class(run.algorithm).config_class
     try:
         checked = config_class.from_dict(run.config).validate()
@@ -310,6 +408,7 @@ def _checked(run: PlannedRun, bad: Any) -> PlannedRun:
             algorithm_class(run.algorithm).config_class.from_dict(checked.algorithm)
     except (ValueError, TypeError) as problem:
         raise bad(f"run {run.id}: {problem}") from None
+    curators(run.id, checked)
     return PlannedRun(
         run.trainer, run.algorithm, run.budget, run.seed, checked.to_dict(), run.robot
     )

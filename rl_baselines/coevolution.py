@@ -18,15 +18,16 @@ that evolves beside it, in *rounds*:
    which ``summary.json`` also reports on 32 unseen family mazes.
 
 The budget is ``budget_steps`` training steps (spent in whole rollouts, as in
-the other regimes) and/or ``budget_seconds`` seconds of the run (everything
-it does, over every resumed part); rounds go on until one of them is reached,
-so a run may end up to one round past it, and it plays at least one round
+the other regimes: a round starts only if its rollout fits in what is left, a
+budget that cannot pay one is refused before the folder is written) and/or
+``budget_seconds`` seconds of the run (everything it does, over every resumed
+part; a run may end up to one round past it); it plays at least one round
 (its agent is a champion of the validations). The steps of the scoring and
 validation episodes are reported apart (``scoring_steps``,
 ``validation_steps``).
 
 **Run folder**: ``config.json``; ``progress.csv`` (a row per round);
-``checkpoints/model-<round>.zip`` and ``checkpoints/state.pkl`` (the maze
+``checkpoints/model-<round>.zip`` and ``checkpoints/state.npz`` (the maze
 population with its generator, counters and champion, naming the model file;
 the model is written first, the state last, each atomically, so a kill
 between the two leaves the previous pair); ``champion.zip`` +
@@ -63,12 +64,17 @@ from amaze.curriculum.picture import save_population_png
 from amaze.curriculum.validation import unseen_mazes, validation_mazes
 from amaze.evaluation.policy import EpisodeResults, run_episodes
 from amaze.maze import Maze, as_mazes, rotations
-from amaze.runs.checkpoint import Allowlist, read_checkpoint, write_checkpoint
+from amaze.runs.checkpoint import (
+    StateCodec,
+    curriculum_classes,
+    read_checkpoint,
+    write_checkpoint,
+)
 from amaze.runs.folder import write_bytes
 from amaze.runs.lifecycle import Run
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, load_sb3_model
-from rl_baselines.config import TrainConfig
+from rl_baselines.config import TrainConfig, check_rollout_fits
 from rl_baselines.learner import new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
 
@@ -78,16 +84,12 @@ PROGRESS_FIELDS = (
     "round", "steps", "seconds", "batch_success", "validation", "validation_success",
     "champion_success", "members", "admitted", "batch_difficulty", "population_difficulty",
 )  # fmt: skip
-#: What ``state.pkl`` may name: the run state and the maze population's classes (and numpy's).
-CHECKPOINT_ALLOWLIST = Allowlist.of(
-    names=("rl_baselines.coevolution:_State",), class_prefixes=("amaze.",)
-)
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
 
 
 @dataclass
 class _State:
-    """The run state of ``checkpoints/state.pkl`` (the model is in ``model_file``)."""
+    """The run state of ``checkpoints/state.npz`` (the model is in ``model_file``)."""
 
     mazes: MazePopulation
     round: int = 0
@@ -100,6 +102,13 @@ class _State:
     champion_round: int = 0
     model_file: str = ""
     version: int = CHECKPOINT_VERSION
+    #: The SHA-256 of the run's ``config.json`` (:attr:`~amaze.runs.lifecycle.Run.config_digest`).
+    config_sha256: str | None = None
+
+
+def _codec() -> StateCodec:
+    """What ``state.npz`` may hold: the run state and the maze population's classes."""
+    return StateCodec([_State, *curriculum_classes()])
 
 
 def _play(mazes: list[Maze], agent: SB3Agent) -> EpisodeResults:
@@ -113,7 +122,7 @@ class SB3CoevolutionRun(Run):
     config_class = TrainConfig
     progress_fields = PROGRESS_FIELDS
     position_field = "round"
-    checkpoint_files = ("state.pkl",)
+    checkpoint_files = ("state.npz",)
     outputs: ClassVar[tuple[str, ...]] = (
         "champion.zip", "summary.json", "progress.csv", "mazes.csv", "population.png",
         "tensorboard/",
@@ -143,9 +152,9 @@ class SB3CoevolutionRun(Run):
         return self.seconds_before + (time.monotonic() - self.started)
 
     def budget_spent(self) -> bool:
-        """True once the steps or the seconds reach their budget (``None``: no limit)."""
+        """True once the steps left cannot pay a rollout, or the seconds are spent."""
         c, s = self.config, self.state
-        return (c.budget_steps is not None and s.steps >= c.budget_steps) or (
+        return (c.budget_steps is not None and c.budget_steps - s.steps < self.rollout) or (
             c.budget_seconds is not None and self.seconds() >= c.budget_seconds
         )
 
@@ -169,14 +178,22 @@ class SB3CoevolutionRun(Run):
         self.model = new_sb3_model(
             c.algo, c.robot, self._first_env(), c.seed, c.hyperparameters, self._tensorboard_dir()
         )
+        check_rollout_fits(c, self.rollout, "learns one rollout a round")
+
+    @property
+    def rollout(self) -> int:
+        """Env steps of a round's rollout (``n_steps x n_envs``)."""
+        assert self.model is not None
+        return int(self.model.n_steps) * self.config.n_envs
 
     def restore(self) -> int | None:
-        path = self.checkpoints / "state.pkl"
+        path = self.checkpoints / "state.npz"
         if not path.exists():
             return None
-        state = read_checkpoint(path, CHECKPOINT_ALLOWLIST, RLConfigError, expected=_State)
+        state = read_checkpoint(path, _codec(), RLConfigError, expected=_State)
         if state.version != CHECKPOINT_VERSION:
             raise RLConfigError(f"checkpoint {str(path)!r} is of version {state.version!r}")
+        self.check_config_digest(state.config_sha256, f"checkpoint {str(path)!r}")
         model_file = self.checkpoints / state.model_file
         if not state.model_file or model_file.parent != self.checkpoints:
             raise RLConfigError(f"checkpoint {str(path)!r} names no model file of its folder")
@@ -208,7 +225,8 @@ class SB3CoevolutionRun(Run):
             row = self.round()
             self.progress.append(row)
             spent = self.budget_spent()
-            if s.steps - last_checkpoint >= c.eval_every or spent:
+            # after the first round too: a run killed later always has a checkpoint
+            if s.round == 1 or s.steps - last_checkpoint >= c.eval_every or spent:
                 self.save_checkpoint()
                 last_checkpoint = s.steps
         if s.round == 0 or not (self.out / "champion.zip").exists():
@@ -326,7 +344,8 @@ class SB3CoevolutionRun(Run):
         model.save(tmp)
         os.replace(tmp, self.checkpoints / name)
         s.model_file, s.seconds = name, self.seconds()
-        write_checkpoint(self.checkpoints / "state.pkl", s)
+        s.config_sha256 = self.config_digest
+        write_checkpoint(self.checkpoints / "state.npz", s, _codec())
         for old in self.checkpoints.glob("model-*.zip"):
             if old.name != name:
                 old.unlink()

@@ -41,7 +41,7 @@ from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
 from rl_baselines.agent import algorithm_class
 
-__all__ = ["MIN_N_STEPS", "TrainConfig", "fitted_hyperparameters"]
+__all__ = ["MIN_N_STEPS", "TrainConfig", "check_rollout_fits", "fitted_hyperparameters"]
 
 #: The fewest steps per environment a fitted rollout has.
 MIN_N_STEPS = 8
@@ -177,6 +177,19 @@ def check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:
                 check_number(what, value, error=RLConfigError)
         elif default is None and value is not None and not isinstance(value, dict):
             raise RLConfigError(f"{what} {value!r} is not a JSON object")
+
+
+def check_rollout_fits(config: TrainConfig, rollout: int, unit: str) -> None:
+    """Refuse a steps budget that cannot pay one rollout: the run would learn nothing.
+
+    ``unit`` says how the run spends rollouts (``"learns in whole rollouts"``).
+    """
+    if config.budget_steps is not None and config.budget_steps < rollout:
+        raise RLConfigError(
+            f"budget_steps {config.budget_steps} cannot pay one rollout ({rollout} steps:"
+            f" n_steps {rollout // config.n_envs} x n_envs {config.n_envs}): the run {unit};"
+            " give a larger budget, or a smaller n_steps in hyperparameters"
+        )
 
 
 def fitted_hyperparameters(config: TrainConfig) -> dict[str, Any]:

@@ -89,6 +89,11 @@ class SB3CurriculumRun(CurriculumRun):
             log_names=self.log_names,
         )
 
+    def smallest_unit(self) -> tuple[int, str]:
+        """One rollout: ``n_steps x n_envs`` env steps."""
+        n_steps, n_envs = int(self.hyperparameters["n_steps"]), self.config.n_envs
+        return n_steps * n_envs, f"one rollout (n_steps {n_steps} x n_envs {n_envs})"
+
     def learner_figures(self) -> dict[str, Any]:
         c = self.config
         return {

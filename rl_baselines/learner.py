@@ -4,8 +4,8 @@
 budget_seconds=...)``): the model's environment becomes an
 :class:`~rl_baselines.vec_env.SB3VecEnv` over the session's mazes (environment
 ``k`` plays ``mazes[k % len(mazes)]``), and SB3 learns in whole rollouts
-(``n_steps x n_envs`` steps): as many as fit in the steps budget, at least
-one. A seconds budget (the session's training seconds over every resumed part
+(``n_steps x n_envs`` steps): as many as fit in the steps budget, never a
+rollout it cannot pay. A seconds budget (the session's training seconds over every resumed part
 of it) ends the session at the first env step that finds it spent, the
 rollout then in progress not learned from; with both budgets the session ends
 at whichever comes first. Where a session on a seconds budget ends depends on
@@ -161,13 +161,13 @@ class SB3Learner:
         return int(self.model.n_steps) * self.n_envs
 
     def session_target(self, budget_steps: int | None) -> int | None:
-        """The steps of a whole session: whole rollouts within the budget, at least one.
+        """The steps of a whole session: as many whole rollouts as the budget pays (maybe none).
 
         ``None`` without a steps budget (a session on seconds alone has no step limit).
         """
         if budget_steps is None:
             return None
-        return max(1, budget_steps // self.rollout) * self.rollout
+        return budget_steps // self.rollout * self.rollout
 
     # -- the protocol -----------------------------------------------------------
 
@@ -182,8 +182,8 @@ class SB3Learner:
     ) -> TrainingOutcome:
         """One session on ``mazes`` (continued if this learner was saved inside it).
 
-        The budget is ``budget_steps`` env steps, spent in whole rollouts (at
-        least one), and/or ``budget_seconds`` seconds of the session (``None``:
+        The budget is ``budget_steps`` env steps, spent in whole rollouts (none
+        if a rollout does not fit), and/or ``budget_seconds`` seconds of the session (``None``:
         no limit of that kind, not both); the session ends at whichever comes
         first, or once converged. A saved session continues only when the
         mazes and both budgets are the same.

@@ -69,7 +69,7 @@ from amaze.runs.lifecycle import Run, RunResult
 from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, load_sb3_model
-from rl_baselines.config import TrainConfig
+from rl_baselines.config import TrainConfig, check_rollout_fits
 from rl_baselines.learner import OPTIMAL, UNLIMITED_STEPS, new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
 
@@ -228,6 +228,13 @@ class SB3Run(Run):
         self.model = new_sb3_model(
             c.algo, c.robot, self._env(), c.seed, c.hyperparameters, self._tensorboard_dir()
         )
+        check_rollout_fits(c, self.rollout, "learns in whole rollouts")
+
+    @property
+    def rollout(self) -> int:
+        """Env steps of one rollout (``n_steps x n_envs``): the smallest unit of training."""
+        assert self.model is not None
+        return int(self.model.n_steps) * self.config.n_envs
 
     def restore(self) -> int | None:
         """The SB3 model and the evaluation state of the last checkpoint, checked."""
@@ -243,6 +250,7 @@ class SB3Run(Run):
             state = _checked_state(data)
         except RLConfigError as problem:
             raise RLConfigError(f"checkpoint file {str(state_file)!r}: {problem}") from None
+        self.check_config_digest(data.get("config_sha256"), f"checkpoint file {str(state_file)!r}")
         self.model = load_sb3_model(
             model_file,
             self.config.algo,
@@ -283,8 +291,9 @@ class SB3Run(Run):
             mazes = rotations(PAPER_EVALUATION_MAZE)
             callback.evaluator = Evaluator(config.robot, mazes=mazes, inputs=False)
             remaining = UNLIMITED_STEPS
-            if config.budget_steps is not None:
-                remaining = config.budget_steps - int(model.num_timesteps)
+            if config.budget_steps is not None:  # whole rollouts, never past the budget
+                left = config.budget_steps - int(model.num_timesteps)
+                remaining = left // self.rollout * self.rollout
             if remaining > 0 and not self.converged and not self.out_of_time():
                 model.learn(
                     total_timesteps=remaining,
@@ -346,6 +355,7 @@ class SB3Run(Run):
                 "best": list(self.best) if self.best is not None else None,
                 "converged": self.converged,
                 "last_eval_steps": self.last_eval_steps,
+                "config_sha256": self.config_digest,
             },
         )
 

@@ -2,13 +2,26 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import shutil
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+
+def load_tool(name: str):
+    """The module of the maintenance script ``tools/<name>.py`` (``tools`` is not a package)."""
+    if name not in sys.modules:
+        path = Path(__file__).parents[1] / "tools" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = sys.modules[name] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
 
 #: 512 random bytes (seeded): a file of garbage.
 RANDOM = bytes(np.random.default_rng(0).integers(0, 256, 512, dtype=np.uint8))

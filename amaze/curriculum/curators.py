@@ -39,7 +39,9 @@ results in :attr:`Candidate.validation`.
 
 from __future__ import annotations
 
+import functools
 import importlib
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
@@ -50,6 +52,7 @@ import numpy as np
 
 from amaze.errors import AmazeError
 from amaze.maze import rotations
+from amaze.validation import check_integer, check_number
 
 __all__ = [
     "BUILTIN_CURATORS",
@@ -118,11 +121,21 @@ class MazeResults:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> MazeResults:
+        """Results read back from JSON; any missing, ill-typed or impossible value raises.
+
+        ``ValueError`` (or ``KeyError``/``TypeError``) names the value: success
+        flags are booleans, R̄ a finite number of at most 1, steps counts; the
+        three lists are as long.
+        """
+        success = data["success"]
+        if not isinstance(success, list) or not all(isinstance(v, bool) for v in success):
+            raise ValueError(f"success {success!r} is not a list of true/false")
+        rewards = tuple(check_number("paper_reward", v, maximum=1.0) for v in data["paper_reward"])
+        steps = tuple(check_integer("steps", v, minimum=0) for v in data["steps"])
+        if not len(success) == len(rewards) == len(steps):
+            raise ValueError("success, paper_reward and steps are not as long as each other")
         return cls(
-            maze=str(data["maze"]),
-            success=tuple(bool(v) for v in data["success"]),
-            paper_reward=tuple(float(v) for v in data["paper_reward"]),
-            steps=tuple(int(v) for v in data["steps"]),
+            maze=str(data["maze"]), success=tuple(success), paper_reward=rewards, steps=steps
         )
 
 
@@ -286,6 +299,12 @@ class Curator(Protocol):
 
 def _plugins() -> dict[str, Any]:
     """The curators declared by installed distributions (entry points), by name."""
+    return _plugins_on(tuple(sys.path))
+
+
+@functools.lru_cache(maxsize=8)
+def _plugins_on(path: tuple[str, ...]) -> dict[str, Any]:
+    """:func:`_plugins` for the import path ``path`` (scanned once: a study checks thousands)."""
     return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 

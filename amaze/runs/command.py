@@ -157,10 +157,27 @@ class TrainingCommand:
         print(f"run folder: {result.out} ({', '.join(result.outputs)})")
         return 0
 
+    def _refuse_with(self, args: argparse.Namespace, mode: str, why: str) -> None:
+        """Refuse the options that ``mode`` (``--resume``, ``--replay``) would ignore."""
+        config_class = self.run_class.config_class
+        given = [
+            "--" + f.name.replace("_", "-")
+            for f in config_class.command_line_fields()
+            if getattr(args, f.name, None) is not None
+        ]
+        others = {"--config": args.config, "--resume": args.resume, "--replay": args.replay}
+        if mode == "--resume":
+            others["--out"] = args.out
+        given += [flag for flag, value in others.items() if value and flag != mode]
+        if given:
+            raise UsageError(f"{mode} {why}: {', '.join(given)} would be ignored; leave them out")
+
     def _one_run(self, args: argparse.Namespace, progress: bool) -> RunResult:
         if args.resume:
+            self._refuse_with(args, "--resume", "continues the run as its config.json says")
             return self.run_class.resume(args.resume, progress_bar=progress)
         if args.replay:
+            self._refuse_with(args, "--replay", "reruns the replayed run's config.json")
             if not args.out:
                 raise UsageError("--replay needs --out, the folder of the new run")
             return self.run_class.replay(args.replay, args.out, progress_bar=progress)

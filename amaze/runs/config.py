@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import types
 import typing
 from collections.abc import Mapping
@@ -29,9 +28,12 @@ from typing import Any, ClassVar, TypeVar, Union
 
 from amaze.agents.robot import as_robot
 from amaze.errors import AmazeError
-from amaze.validation import check_integer
+from amaze.validation import check_integer, parse_json
 
-__all__ = ["RunConfig", "config_from_dict", "option", "read_json_object"]
+__all__ = ["MAX_SEED", "RunConfig", "config_from_dict", "option", "read_json_object"]
+
+#: The largest seed of a run: numpy's and SB3's global seeding take 32-bit seeds.
+MAX_SEED = 2**32 - 1
 
 _Config = TypeVar("_Config")
 _RunConfig = TypeVar("_RunConfig", bound="RunConfig")
@@ -76,18 +78,18 @@ def config_from_dict(
 
 def read_json_object(path: str | Path, error: type[ValueError], what: str = "config file") -> dict:
     """The JSON object in the file ``path``; raise ``error`` naming the file otherwise."""
+    where = f"{what} {str(path)!r}"
     try:
-        loaded = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = Path(path).read_bytes()
     except FileNotFoundError:
-        raise error(f"{what} {str(path)!r} does not exist") from None
+        raise error(f"{where} does not exist") from None
     except IsADirectoryError:
-        raise error(f"{what} {str(path)!r} is a directory") from None
-    except (OSError, UnicodeDecodeError) as problem:
-        raise error(f"{what} {str(path)!r} cannot be read: {problem}") from None
-    except json.JSONDecodeError as problem:
-        raise error(f"{what} {str(path)!r} is not JSON: {problem}") from None
+        raise error(f"{where} is a directory") from None
+    except OSError as problem:
+        raise error(f"{where} cannot be read: {problem.strerror or problem}") from None
+    loaded = parse_json(data, where, error=error)
     if not isinstance(loaded, dict):
-        raise error(f"{what} {str(path)!r} does not hold a JSON object")
+        raise error(f"{where} does not hold a JSON object")
     return loaded
 
 
@@ -129,7 +131,7 @@ class RunConfig:
             self.robot = as_robot(self.robot).to_string()
         except ValueError as problem:
             raise self.error(f"robot {self.robot!r}: {problem}") from None
-        self.seed = check_integer("seed", self.seed, minimum=0, error=self.error)
+        self.seed = check_integer("seed", self.seed, minimum=0, maximum=MAX_SEED, error=self.error)
         return self
 
     @classmethod

@@ -25,6 +25,11 @@ between stages and branches by
 ``budget / (K * S)`` per agent per stage, the steps a stage leaves unspent
 handed on to the next ones). Branches of a stage are copies of the selected
 agent, each with its own random stream (:func:`~amaze.curriculum.learner.branch_seed`).
+A steps budget is a hard limit: a run whose first branch could not pay the
+learner's smallest unit of training (:meth:`CurriculumRun.smallest_unit`: a
+rollout, a generation on the trivial maze) is refused before its folder is
+written, and a stage whose branches could not pay it is not played (the run
+ends, its last stage's candidates compete for the final choice).
 
 **Open-ended stages** (``stages`` 0, the ``edens`` regime's default): the
 loop plays stages until the budget is spent (less than 1 % left), each
@@ -76,6 +81,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import re
 import shutil
 import time
 from abc import abstractmethod
@@ -119,7 +125,7 @@ from amaze.maze.spec import MazeSpec
 from amaze.runs.config import RunConfig, option
 from amaze.runs.folder import read_text, write_bytes, write_json
 from amaze.runs.lifecycle import Run
-from amaze.validation import check_integer
+from amaze.validation import check_integer, check_number, parse_json
 
 __all__ = [
     "DECISIONS_FILE",
@@ -129,6 +135,7 @@ __all__ = [
     "CurriculumRun",
     "Decision",
     "DecisionLog",
+    "branch_folder",
 ]
 
 DECISIONS_FILE = "decisions.jsonl"
@@ -272,8 +279,11 @@ class CurriculumConfig(RunConfig):
         self.stages = check_integer(
             "stages", self.stages, minimum=0, maximum=MAX_STAGES, error=self.error
         )
-        if self.stages == OPEN_STAGES and self.regime == "interpolation":
-            raise self.error("stages 0: an interpolation has a fixed number of stages (2 or more)")
+        if self.regime == "interpolation" and self.stages < 2:
+            raise self.error(
+                f"stages {self.stages}: an interpolation has a fixed number of stages, 2 or"
+                " more (its first maze and its target)"
+            )
         if self.stages != OPEN_STAGES and self.epochs is not None:
             raise self.error(
                 f"epochs {self.epochs!r} is for open-ended curricula (stages 0), not"
@@ -439,9 +449,9 @@ class DecisionLog:
                 return error(f"{what} {where}, line {number}: {problem}")
 
             try:
-                data = json.loads(line)
-            except json.JSONDecodeError as problem:
-                raise bad(f"not JSON ({problem})") from None
+                data = parse_json(line, "the line", error=ValueError)
+            except ValueError as problem:
+                raise bad(str(problem).removeprefix("the line ")) from None
             if not isinstance(data, dict):
                 raise bad("not a JSON object")
             index = len(decisions)
@@ -499,6 +509,17 @@ class DecisionLog:
 # -- the run --------------------------------------------------------------------------
 
 
+#: A branch folder, relative to the run folder.
+_BRANCH_FOLDER = re.compile(r"stages/stage-(0|[1-9][0-9]*)/branch-(0|[1-9][0-9]*)")
+#: What a branch in training records when it starts (its ``checkpoint/`` continues only that).
+BRANCH_FILE = "branch.json"
+
+
+def branch_folder(out: Path, stage: int, branch: int) -> Path:
+    """Where the loop keeps a branch of the run in ``out``: ``stages/stage-<s>/branch-<b>``."""
+    return Path(out) / "stages" / f"stage-{stage}" / f"branch-{branch}"
+
+
 def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
@@ -517,24 +538,45 @@ def _maze_results(evaluator: Evaluator, agent: Any, mazes: Sequence[str]) -> lis
     ]
 
 
+def _count(data: Mapping[str, Any], key: str) -> int:
+    """``data[key]``, a non-negative integer (``ValueError`` otherwise)."""
+    return check_integer(key, data[key], minimum=0)
+
+
 def _candidate_from_dict(data: Mapping[str, Any], folder: Path) -> Candidate:
-    """A candidate read from ``result.json`` (any missing or ill-typed key raises)."""
+    """A candidate read from ``result.json`` (any missing, ill-typed or impossible value raises)."""
+    if not isinstance(data["mazes"], list) or len(data["mazes"]) != 1:
+        raise ValueError(f"mazes {data['mazes']!r} is not a list of one maze")
     mazes = tuple(str(m) for m in data["mazes"])
     results = [MazeResults.from_dict(r) for r in data["results"]]
     branch = int(data["branch"])  # results come in branch order: two branches may share a maze
     if not 0 <= branch < len(results) or results[branch].maze not in mazes:
         raise ValueError(f"branch {branch} has no results of its own maze")
+    lineage = tuple(check_integer("lineage", b, minimum=0) for b in data["lineage"])
+    stage = _count(data, "stage")
+    if len(lineage) != stage + 1 or lineage[-1] != branch:
+        raise ValueError(f"lineage {list(lineage)} is not that of branch {branch} of stage {stage}")
+    env_steps, lineage_steps = _count(data, "env_steps"), _count(data, "lineage_steps")
+    if lineage_steps < env_steps:
+        raise ValueError(f"lineage_steps {lineage_steps} is less than env_steps {env_steps}")
+    if not isinstance(data["converged"], bool):
+        raise ValueError(f"converged {data['converged']!r} is not true or false")
+    time = data.get("time", {})
+    if not isinstance(time, dict):
+        raise ValueError(f"time {time!r} is not an object")
+    for part, seconds in time.items():
+        check_number(f"time {part}", seconds, minimum=0)
     return Candidate(
-        stage=int(data["stage"]),
+        stage=stage,
         branch=branch,
         mazes=mazes,
         own=(results[branch],),
         others=tuple(r for i, r in enumerate(results) if i != branch),
-        lineage=tuple(int(b) for b in data["lineage"]),
-        env_steps=int(data["env_steps"]),
-        seconds=float(data["seconds"]),
-        converged=bool(data["converged"]),
-        lineage_steps=int(data["lineage_steps"]),
+        lineage=lineage,
+        env_steps=env_steps,
+        seconds=check_number("seconds", data["seconds"], minimum=0),
+        converged=data["converged"],
+        lineage_steps=lineage_steps,
         pictures=tuple(folder / str(p) for p in data.get("pictures", [])),
         validation=tuple(MazeResults.from_dict(r) for r in data.get("validation", [])),
     )
@@ -600,6 +642,16 @@ class CurriculumRun(Run):
         """The trainer's entries of ``summary.json`` (algorithm, robot...)."""
         return {}
 
+    def smallest_unit(self) -> tuple[int, str]:
+        """The env steps of the learner's smallest unit of training, and what that unit is.
+
+        A rollout for RL, a generation on the trivial first maze for
+        evolution: a branch allowed fewer steps could not train at all, so the
+        loop plays no stage whose branches it would give fewer (the trainer's
+        learner itself never starts a unit its session cannot pay).
+        """
+        return 1, "one env step"
+
     def branch_progress(self, progress: BranchProgress) -> None:
         """Hear how far the branch in training is (a live display overrides this).
 
@@ -633,15 +685,25 @@ class CurriculumRun(Run):
         return dataclasses.replace(c, replay=str(source))
 
     def start(self) -> None:
-        """Build the curator (a bad name or plug-in fails here) and read a replay's decisions."""
+        """Build the curator (a bad name or plug-in fails here) and read a replay's decisions.
+
+        A steps budget that cannot give the first branch the learner's
+        smallest unit of training is refused here too, before anything is written.
+        """
         c = self.config
-        try:
-            self.curator = make_curator(c.curator, c.curator_context())
-            validation = list(getattr(self.curator, "validation", None) or ())
-            if validation:
-                validation = check_mazes(validation, len(validation), c.curator)
-        except CuratorError as problem:
-            raise c.error(str(problem)) from None
+        self._check_budget()
+        self.curator = self._curator_call(
+            "being built", lambda: make_curator(c.curator, c.curator_context())
+        )
+        validation = self._curator_call(
+            "giving its validation mazes",
+            lambda: list(getattr(self.curator, "validation", None) or ()),
+        )
+        if validation:
+            validation = self._curator_call(
+                "giving its validation mazes",
+                lambda: check_mazes(validation, len(validation), c.curator),
+            )
         self.validation = (
             (Evaluator(c.robot, rotations(validation), inputs=False), validation)
             if validation
@@ -657,15 +719,70 @@ class CurriculumRun(Run):
                 self.replayed = source.read(c.stages, c.branches, c.error)
 
     def restore(self) -> int | None:
-        """Check the decisions, the replay's and every finished branch; count the branches."""
+        """Check every file the resumed loop will read; count the finished branches.
+
+        The decisions (and a replay's), every finished branch's result, that
+        the results agree with the decisions (each branch of the maze its
+        stage's generate decision gave it, descending from the branch the
+        select decision chose), and every learner the loop and the summary
+        will load: the finished branches' agents and the checkpoint of a
+        branch in training. Anything wrong is refused here, by name, before
+        training goes on.
+        """
         c = self.config
         self.start()
         self.recorded = self.decisions.read(c.stages, c.branches, c.error)
-        finished = 0
-        for result in sorted(self.out.glob("stages/stage-*/branch-*/result.json")):
-            self._read_candidate(result.parent)
-            finished += 1
-        return finished or None
+        finished: dict[tuple[int, int], Candidate] = {}
+        for folder in self._branch_folders():
+            if (folder / "result.json").exists():
+                candidate = self._read_candidate(folder)
+                finished[candidate.stage, candidate.branch] = candidate
+        for candidate in finished.values():
+            self._check_against_decisions(candidate, finished)
+        for folder in self._branch_folders():
+            has_result = (folder / "result.json").exists()
+            if has_result or (folder / "checkpoint").exists():
+                self.load_learner(folder / ("agent" if has_result else "checkpoint"))
+        return len(finished) or None
+
+    def _branch_folders(self) -> list[Path]:
+        """The folders ``stages/stage-<s>/branch-<b>`` (other names are not the loop's)."""
+        folders = []
+        for folder in self.out.glob("stages/stage-*/branch-*"):
+            if _BRANCH_FOLDER.fullmatch(folder.relative_to(self.out).as_posix()):
+                folders.append(folder)
+        return sorted(folders, key=lambda f: (int(f.parent.name[6:]), int(f.name[7:])))
+
+    def _check_against_decisions(
+        self, candidate: Candidate, finished: Mapping[tuple[int, int], Candidate]
+    ) -> None:
+        """A finished branch agrees with the decisions recorded before it was trained."""
+        c, stage, branch = self.config, candidate.stage, candidate.branch
+        where = repr(str(self._branch_folder(candidate) / "result.json"))
+        recorded = self.recorded
+        generate = decision_index(stage, "generate")
+        mazes = recorded[generate].mazes if generate < len(recorded) else None
+        if mazes is None or branch >= len(mazes) or candidate.mazes != (mazes[branch],):
+            raise c.error(
+                f"branch result {where} is of maze {candidate.mazes[0]!r}, which"
+                f" {str(self.decisions.path)!r} does not give branch {branch} of stage {stage}"
+            )
+        if stage == 0:
+            return
+        select = decision_index(stage, "select")
+        choice = recorded[select].choice if select < len(recorded) else None
+        parent = finished.get((stage - 1, choice)) if choice is not None else None
+        if parent is None or candidate.lineage[:-1] != parent.lineage:
+            raise c.error(
+                f"branch result {where} descends from lineage {list(candidate.lineage[:-1])},"
+                f" but {str(self.decisions.path)!r} chose branch {choice} of stage {stage - 1}"
+                + ("" if parent is None else f" (lineage {list(parent.lineage)})")
+            )
+        if candidate.lineage_steps != parent.lineage_steps + candidate.env_steps:
+            raise c.error(
+                f"branch result {where}: lineage_steps {candidate.lineage_steps} is not its"
+                f" parent's {parent.lineage_steps} plus its env_steps {candidate.env_steps}"
+            )
 
     def train(self, progress_bar: bool) -> None:
         """The loop (see the module docstring), skipping what the folder says is done."""
@@ -813,14 +930,45 @@ class CurriculumRun(Run):
         stages = "open-ended stages" if c.open_ended else f"{c.stages} stages"
         return f"{c.regime} / {c.curator}, seed {c.seed}: {stages} x {c.branches}"
 
+    def _check_budget(self) -> None:
+        """Refuse a steps budget whose first branch could not pay the smallest unit of training."""
+        c = self.config
+        if c.budget_steps is None:
+            return
+        unit, what = self.smallest_unit()
+        allowance = branch_allowance(c.budget_steps, 0, 0, c.stages, c.branches, c.epochs)
+        if allowance >= unit:
+            return
+        if c.open_ended:
+            shares, count = f"{c.branches} branches x {c.epochs} epochs", c.branches * c.epochs
+        else:
+            shares, count = f"{c.branches} branches x {c.stages} stages", c.branches * c.stages
+        raise c.error(
+            f"budget_steps {c.budget_steps} gives each branch {allowance} steps"
+            f" ({c.budget_steps} / ({shares})), less than {what} ({unit} steps): give"
+            f" budget_steps >= {unit * count}, or fewer stages, branches or epochs"
+        )
+
     def _over(self, stage: int) -> bool:
-        """True when the loop plays no ``stage``: it has played all of them or spent its budget."""
+        """True when the loop plays no ``stage``: it played all of them, or spent its budget.
+
+        Spent means: as :func:`~amaze.curriculum.regimes.curriculum_over` says,
+        or the stage's branches would be allowed fewer steps than the
+        learner's smallest unit of training.
+        """
         c = self.config
         spent = [
             (c.budget_steps, self._steps()),
             (getattr(c, "budget_seconds", None), self._seconds()),
         ]
-        return curriculum_over(stage, c.stages, spent)
+        if curriculum_over(stage, c.stages, spent):
+            return True
+        if c.budget_steps is None or stage == 0:
+            return False
+        allowance = branch_allowance(
+            c.budget_steps, self._steps(), stage, c.stages, c.branches, c.epochs
+        )
+        return allowance < self.smallest_unit()[0]
 
     def _lineage_mazes(self) -> list[str]:
         """The own mazes of the selected branches so far, newest first, each once."""
@@ -839,7 +987,28 @@ class CurriculumRun(Run):
 
     def _generate(self, history: History) -> list[str]:
         assert self.curator is not None
-        return self.curator.generate(self.config.branches, history)
+        curator = self.curator
+        return self._curator_call(
+            "generating mazes", lambda: curator.generate(self.config.branches, history)
+        )
+
+    def _curator_call(self, doing: str, call: Callable[[], Any]) -> Any:
+        """``call()``, a call into the curator: whatever it raises is the config's error.
+
+        A curator may be a plug-in: its exceptions (an ``OSError``, a bug, even
+        ``SystemExit``) end the run with one line naming the curator and what
+        it was doing, never a traceback or an exit status that hides the failure.
+        """
+        name = self.config.curator
+        try:
+            return call()
+        except KeyboardInterrupt:
+            raise
+        except CuratorError as problem:
+            raise self.config.error(str(problem)) from None
+        except (Exception, SystemExit) as problem:
+            detail = f"{type(problem).__name__}: {problem}".rstrip(": ")
+            raise self.config.error(f"curator {name!r} failed {doing} ({detail})") from None
 
     def _seconds(self, current: Sequence[Candidate] = ()) -> float:
         """Seconds of every finished branch (and of ``current``, the stage in progress)."""
@@ -863,8 +1032,9 @@ class CurriculumRun(Run):
         candidates = record.candidates
 
         def ask() -> int:
-            assert self.curator is not None
-            chosen = self.curator.select(list(candidates))
+            curator = self.curator
+            assert curator is not None
+            chosen = self._curator_call("selecting", lambda: curator.select(list(candidates)))
             for index, candidate in enumerate(candidates):
                 if chosen is candidate or chosen == candidate:
                     return index
@@ -929,7 +1099,7 @@ class CurriculumRun(Run):
             stage, branch = candidate_or_stage.stage, candidate_or_stage.branch
         else:
             stage = candidate_or_stage
-        return self.out / "stages" / f"stage-{stage}" / f"branch-{branch}"
+        return branch_folder(self.out, stage, branch)
 
     def _read_candidate(self, folder: Path) -> Candidate:
         """The finished branch in ``folder``, its ``result.json`` checked."""
@@ -938,11 +1108,45 @@ class CurriculumRun(Run):
         path = folder / "result.json"
         data = read_json_object(path, self.config.error, "branch result")
         try:
-            return _candidate_from_dict(data, folder)
+            candidate = _candidate_from_dict(data, folder)
         except (KeyError, TypeError, ValueError) as problem:
             raise self.config.error(
                 f"branch result {str(path)!r} is damaged ({type(problem).__name__}: {problem})"
             ) from None
+        if self._branch_folder(candidate) != folder:
+            raise self.config.error(
+                f"branch result {str(path)!r} says stage {candidate.stage} branch"
+                f" {candidate.branch}: it is in another branch's folder"
+            )
+        self.check_config_digest(data.get("config_sha256"), f"branch result {str(path)!r}")
+        return candidate
+
+    def _check_branch_record(self, folder: Path, started: Mapping[str, Any]) -> None:
+        """The branch in training in ``folder`` was started as the loop would start it now.
+
+        Its ``branch.json`` recorded its mazes, parent, allowance and config
+        when it started: a checkpoint goes on only with the same, since the
+        learner would otherwise continue a session on other mazes, from
+        another parent or with another budget (decisions or results edited
+        since, or another config).
+        """
+        from amaze.runs.config import read_json_object
+
+        path = folder / BRANCH_FILE
+        where = f"branch record {str(path)!r}"
+        if not (path.exists() or path.is_symlink()):
+            raise self.config.error(
+                f"{where} is missing: the checkpoint beside it cannot be checked"
+            )
+        recorded = read_json_object(path, self.config.error, "branch record")
+        changed = sorted(key for key in started if recorded.get(key) != started[key])
+        if changed:
+            name = changed[0]
+            raise self.config.error(
+                f"{where}: the branch in training started with {name} {recorded.get(name)!r},"
+                f" but the run's decisions, results and config now give {started[name]!r}"
+                f" ({', '.join(changed)} changed since): its checkpoint cannot go on"
+            )
 
     def _branch(
         self,
@@ -978,13 +1182,25 @@ class CurriculumRun(Run):
         report(0)
         clock = [time.perf_counter()]
         checkpoint = folder / "checkpoint"
+        started = {
+            "stage": stage,
+            "branch": branch,
+            "training_mazes": list(training),
+            "parent_lineage": None if parent is None else list(parent.lineage),
+            "budget_steps": allowance[0],
+            "budget_seconds": allowance[1],
+            "config_sha256": self.config_digest,
+        }
         if checkpoint.exists():
+            self._check_branch_record(folder, started)
             learner = self.load_learner(checkpoint)
         elif parent is None:
             learner = self.new_learner(branch_seed(c.seed, stage, branch))
         else:
             parent_learner = self.load_learner(self._branch_folder(parent) / "agent")
             learner = parent_learner.branch(branch_seed(c.seed, stage, branch))
+        if not checkpoint.exists():
+            write_json(folder / BRANCH_FILE, started)
         clock.append(time.perf_counter())
         outcome = learner.train(
             [rotated for maze in training for rotated in rotations(maze)],
@@ -1036,6 +1252,7 @@ class CurriculumRun(Run):
         data = _candidate_to_dict(candidate, results)
         data["time"] = {part: round(seconds, 3) for part, seconds in spent.items()}
         data["training_mazes"] = list(training)
+        data["config_sha256"] = self.config_digest
         write_json(folder / "result.json", data)
         # Branches run in order: the earlier stages' and this stage's first ``branch``.
         finished = sum(len(record.candidates) for record in self.records) + branch + 1

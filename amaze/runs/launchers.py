@@ -8,15 +8,21 @@ interrupted (Ctrl-C), stops the ones still running. Where a job runs is the
 launcher's business, so the loop is the same on every backend:
 
 * :class:`ProcessLauncher`: a child process of this one, with an equal share
-  of the cores (``NUMBA_NUM_THREADS``, ``OMP_NUM_THREADS``);
+  of the cores (``NUMBA_NUM_THREADS``, ``OMP_NUM_THREADS``), that dies with
+  this process (:func:`die_with_parent`): a launcher killed outright
+  (``kill -9``, the out-of-memory killer) leaves no job running behind it,
+  writing into the folder that a new launcher's job then writes into too;
 * ``RayLauncher`` (:mod:`amaze.runs.ray_tasks`): a Ray task of one CPU on a
   cluster, retried when its worker or node is lost.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -24,15 +30,19 @@ from pathlib import Path
 from typing import Protocol, TypeVar
 
 __all__ = [
+    "PR_SET_PDEATHSIG",
     "Job",
     "Launcher",
     "ProcessLauncher",
+    "die_with_parent",
     "run_jobs",
     "worker_environment",
     "worker_threads",
 ]
 
 Key = TypeVar("Key")
+#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
+PR_SET_PDEATHSIG = 1
 
 
 @dataclass(frozen=True)
@@ -78,6 +88,28 @@ class Launcher(Protocol):
         ...
 
 
+def die_with_parent() -> Callable[[], None] | None:
+    """A ``preexec_fn`` that has the child killed (SIGKILL) when its parent dies.
+
+    Linux's ``prctl(PR_SET_PDEATHSIG)``, set in the child between fork and
+    exec; a parent that died before it took effect is caught by the child
+    looking at its parent. ``None`` (nothing to do) on other systems. The
+    signal comes when the thread that started the child ends: start children
+    from a thread that lives as long as the process (the main thread).
+    """
+    if not sys.platform.startswith("linux"):
+        return None
+    libc = ctypes.CDLL(None, use_errno=True)  # loaded before the fork, not in the child
+    parent = os.getpid()
+
+    def preexec() -> None:
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        if os.getppid() != parent:  # the parent died before prctl took effect
+            os.kill(os.getpid(), signal.SIGKILL)
+
+    return preexec
+
+
 def worker_threads(workers: int) -> int:
     """The threads each of ``workers`` parallel processes gets: an equal share of the cores."""
     return max(1, (os.cpu_count() or 1) // workers)
@@ -92,21 +124,33 @@ def worker_environment(workers: int) -> dict[str, str]:
 
 
 class ProcessLauncher:
-    """Jobs as child processes of this one, each with an equal share of ``workers`` of the cores."""
+    """Jobs as child processes of this one, each with an equal share of ``workers`` of the cores.
+
+    Each child dies with this process (:func:`die_with_parent`). ``pass_fds``
+    are file descriptors every child inherits, such as a lock that must be
+    held as long as this process or any of its jobs lives (the study
+    runner's, ``experiments.runner``).
+    """
 
     retries = 0
     #: Seconds a stopped process has to end after SIGTERM before it is killed.
     STOP_SECONDS = 30.0
 
-    def __init__(self, workers: int) -> None:
+    def __init__(self, workers: int, pass_fds: Sequence[int] = ()) -> None:
         self.threads = worker_threads(workers)
         self.environment = worker_environment(workers)
+        self.pass_fds = tuple(pass_fds)
 
     def start(self, job: Job) -> subprocess.Popen:
         job.log.parent.mkdir(parents=True, exist_ok=True)
         with job.log.open("a", encoding="utf-8") as log:
             return subprocess.Popen(
-                job.command_now(), stdout=log, stderr=subprocess.STDOUT, env=self.environment
+                job.command_now(),
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                env=self.environment,
+                pass_fds=self.pass_fds,
+                preexec_fn=die_with_parent(),
             )
 
     def poll(self, handle: object) -> int | None:

@@ -14,7 +14,11 @@ folders"):
   own files), refusing any damaged or inconsistent file by name before
   anything changes; then drop the ``progress.csv`` rows written after that
   checkpoint (or start over if the run was killed before its first one),
-  train on, finish;
+  train on, finish. Checkpoints record a SHA-256 digest of ``config.json``
+  (:attr:`Run.config_digest`): a config changed since they were written is
+  refused (:meth:`Run.check_config_digest`), not trained on. Only the budgets
+  (:data:`BUDGET_KEYS`) are left out of the digest: raising one in
+  ``config.json`` and resuming extends a run;
 * **finish** (:meth:`Run.finish`): the final agent on the standard evaluation
   suite (the one evaluation protocol), its trajectories, the trainer's
   pictures, and ``summary.json`` last: a run folder with a summary is a
@@ -36,11 +40,15 @@ computes.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import gc
+import hashlib
+import json
 import os
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -51,6 +59,14 @@ __all__ = ["CONFIG_FILE", "LOG_FILE", "SUMMARY_FILE", "Run", "RunResult", "froze
 
 CONFIG_FILE = "config.json"
 SUMMARY_FILE = "summary.json"
+#: Keys only one training command's ``config.json`` holds: a run folder of the
+#: other command is named as such, with the command that resumes it.
+COMMAND_KEYS = {
+    "amaze-evolve": frozenset({"algorithm", "fitness", "max_generations", "checkpoint_seconds"}),
+    "amaze-train": frozenset({"hyperparameters", "n_envs", "eval_every", "tensorboard"}),
+}
+#: The ``config.json`` keys a resumed run may find changed: raising a budget extends a run.
+BUDGET_KEYS = frozenset({"budget_steps", "budget_seconds", "max_generations"})
 #: What the process of a replicate prints (:mod:`amaze.runs.replicates`): it is
 #: opened before the run starts, so a folder holding only it counts as empty.
 LOG_FILE = "log.txt"
@@ -180,6 +196,25 @@ class Run(ABC):
             f" input_recognition {'n/a' if recognition is None else f'{recognition:.3f}'}"
         )
 
+    @cached_property
+    def config_digest(self) -> str:
+        """The SHA-256 of ``config.json``'s object, budgets left out (hex, of sorted-key JSON)."""
+        data = read_json_object(self.out / CONFIG_FILE, self.config.error, "run config")
+        kept = {key: value for key, value in data.items() if key not in BUDGET_KEYS}
+        return hashlib.sha256(json.dumps(kept, sort_keys=True).encode("utf-8")).hexdigest()
+
+    def check_config_digest(self, recorded: object, where: str) -> None:
+        """Refuse a file (``where``) written under another ``config.json`` than the folder's.
+
+        ``recorded`` is the digest the file holds (``None``: a file of an
+        older version, which recorded none, is accepted).
+        """
+        if recorded is not None and recorded != self.config_digest:
+            raise self.config.error(
+                f"{where} was written under another config.json: {str(self.out / CONFIG_FILE)!r}"
+                " changed since (put it back, or start a new run)"
+            )
+
     # -- the lifecycle ----------------------------------------------------------
 
     @classmethod
@@ -282,6 +317,13 @@ class Run(ABC):
         if not (config_file.exists() or config_file.is_symlink()):
             raise error(f"{str(path)!r} holds no run (no {CONFIG_FILE})")
         data = read_json_object(config_file, error, "run config")
+        known = {f.name for f in dataclasses.fields(cls.config_class)}
+        for command, keys in COMMAND_KEYS.items():
+            if keys & set(data) and not keys & known:
+                raise error(
+                    f"{str(path)!r} holds a run of {command} (its config.json has"
+                    f" {', '.join(sorted(keys & set(data)))}): use {command} for it"
+                )
         try:
             return cls.config_class.from_dict(data)
         except error as problem:

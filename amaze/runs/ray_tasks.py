@@ -27,13 +27,11 @@ launcher is made (:func:`remote_job`), after :func:`~amaze.runs.cluster.connect`
 
 from __future__ import annotations
 
-import ctypes
 import os
-import signal
 import socket
 import subprocess
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -42,7 +40,7 @@ from typing import Any
 
 from amaze.errors import one_line
 from amaze.runs.cluster import connect
-from amaze.runs.launchers import Job
+from amaze.runs.launchers import Job, die_with_parent
 
 __all__ = ["LOST_STATUS", "TASK_RETRIES", "RayLauncher", "RunKilled", "remote_job", "run_job"]
 
@@ -56,8 +54,6 @@ TASK_RETRIES = 3
 #: its command (its worker or node lost more than :data:`TASK_RETRIES` times,
 #: or a command that could not start); the job's log says why.
 LOST_STATUS = 1
-#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
-PR_SET_PDEATHSIG = 1
 #: The environment every task's command gets on top of its worker's.
 TASK_ENVIRONMENT = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
 
@@ -75,21 +71,6 @@ class RunKilled(RuntimeError):
 
 def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
-
-
-def _die_with_parent() -> Callable[[], None] | None:
-    """A ``preexec_fn`` that has the child killed when its parent dies (Linux; else ``None``)."""
-    if not sys.platform.startswith("linux"):
-        return None
-    libc = ctypes.CDLL(None, use_errno=True)  # loaded before the fork, not in the child
-    parent = os.getpid()
-
-    def preexec() -> None:
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-        if os.getppid() != parent:  # the parent died before prctl took effect
-            os.kill(os.getpid(), signal.SIGKILL)
-
-    return preexec
 
 
 def _python_here(command: Sequence[str]) -> list[str]:
@@ -121,7 +102,7 @@ def run_job(job: Job, cwd: str) -> int:
             stderr=subprocess.STDOUT,
             cwd=cwd,
             env=environment,
-            preexec_fn=_die_with_parent(),
+            preexec_fn=die_with_parent(),
         )
     with job.log.open("a", encoding="utf-8") as log:
         log.write(f"--- {_now()}: run process {process.pid}: {' '.join(command)}\n")

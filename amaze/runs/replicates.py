@@ -28,6 +28,7 @@ from pathlib import Path
 
 from amaze.errors import UsageError
 from amaze.runs.cluster import check_backend
+from amaze.runs.config import MAX_SEED
 from amaze.runs.launchers import (
     Job,
     Launcher,
@@ -104,6 +105,12 @@ def plan_replicates(
     where the work runs (:data:`NOT_PASSED_ON`); every other option is kept.
     """
     check_integer("--replicates", count, minimum=1, error=UsageError)
+    check_integer("--seed", first_seed, minimum=0, maximum=MAX_SEED, error=UsageError)
+    if first_seed + count - 1 > MAX_SEED:
+        raise UsageError(
+            f"--seed {first_seed} with --replicates {count} reaches seed"
+            f" {first_seed + count - 1}, above {MAX_SEED}"
+        )
     base = strip_options(argv, ("--replicates", "--workers", "--seed", "--out", *NOT_PASSED_ON))
     plan = []
     for seed in range(first_seed, first_seed + count):

@@ -13,7 +13,8 @@ the line names it), opens the browser unless ``--no-browser``, and serves
 until interrupted (Ctrl-C). The run folder is the curriculum loop's
 (:mod:`amaze.runs.curriculum`): ``decisions.jsonl`` holds every decision with
 the seconds the person took. Bad input prints one line ``error: ...`` and
-exits with status 2.
+exits with status 2; ``--resume`` checks every file the resumed run reads
+(:mod:`experiments.curate.resume`) before it serves the page.
 """
 
 from __future__ import annotations
@@ -164,14 +165,19 @@ def _listen(host: str, port: int) -> socket.socket:
     return sock
 
 
-def _serve(args: argparse.Namespace, run_class: type[Run], config: Any, out: Path) -> int:
+def _loop_class(run_class: type[Run], config: Any) -> type[CurriculumRun]:
+    """The trainer's curriculum loop that runs ``config`` (an EDHuCAT config)."""
+    base = run_class.run_class_for(config)
+    assert issubclass(base, CurriculumRun)
+    return base
+
+
+def _serve(args: argparse.Namespace, base: type[CurriculumRun], config: Any, out: Path) -> int:
     import uvicorn
 
     from experiments.curate.server import create_app
     from experiments.curate.session import CurationSession
 
-    base = run_class.run_class_for(config)
-    assert issubclass(base, CurriculumRun)
     session = CurationSession(out, _describe(config))
     browser_run = session.run_class(base)
     sock = _listen(args.host, args.port)
@@ -231,10 +237,16 @@ def _run(argv: Sequence[str]) -> int:
         print(f"run folder: {result.out} ({', '.join(result.outputs)})")
         return 0
     if args.resume:
+        from experiments.curate.resume import check_resume
+
         run_class, config, out = _resumed(args.resume)
+        base = _loop_class(run_class, config)
+        # Every file the resume reads is checked before the page is served.
+        check_resume(base, out)
     else:
         run_class, config, out = _fresh(args)
-    return _serve(args, run_class, config, out)
+        base = _loop_class(run_class, config)
+    return _serve(args, base, config, out)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -23,6 +23,7 @@ from amaze.maze.maze import Maze
 from amaze.maze.metrics import compute_metrics
 from amaze.maze.signs import Sign
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec, StartLocation
+from amaze.validation import check_integer, check_number
 
 __all__ = [
     "MAX_STRING_LENGTH",
@@ -85,13 +86,23 @@ def maze_fields(spec: MazeSpec) -> dict[str, Any]:
     return fields
 
 
-def _number(fields: Mapping[str, Any], name: str, kind: type) -> Any:
+def _whole(fields: Mapping[str, Any], name: str, **bounds: int) -> int:
+    """The whole number ``fields[name]`` within ``bounds`` (``minimum``, ``maximum``).
+
+    ``10.0`` counts as 10 (a script may send whole numbers as floats); NaN,
+    infinities and fractions are refused, naming the field and the value.
+    """
     value = fields.get(name)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise DesignError(f"{name} {value!r} is not a number")
-    if kind is int and value != int(value):
-        raise DesignError(f"{name} {value!r} is not a whole number")
-    return kind(value)
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    return check_integer(name, value, error=DesignError, **bounds)
+
+
+def _fraction(fields: Mapping[str, Any], name: str, label: str) -> float:
+    """The finite number ``fields[name]`` in ]0, 1] (a lightness, a probability)."""
+    return check_number(
+        label, fields.get(name), minimum=0, strict_minimum=True, maximum=1, error=DesignError
+    )
 
 
 def spec_from_fields(fields: Any, base: str | None = None) -> MazeSpec:
@@ -104,13 +115,8 @@ def spec_from_fields(fields: Any, base: str | None = None) -> MazeSpec:
         raise DesignError(f"start {start!r} is not one of {', '.join(CORNERS)}")
     changes: dict[str, Any] = {"start": StartLocation.from_shorthand(start)}
     for name in ("width", "height"):
-        size = _number(fields, name, int)
-        if not MIN_SIZE <= size <= MAX_SIZE:
-            raise DesignError(f"{name} {size} is not in {MIN_SIZE}..{MAX_SIZE}")
-        changes[name] = size
-    changes["seed"] = _number(fields, "seed", int)
-    if changes["seed"] < 0:
-        raise DesignError(f"seed {changes['seed']} is negative")
+        changes[name] = _whole(fields, name, minimum=MIN_SIZE, maximum=MAX_SIZE)
+    changes["seed"] = _whole(fields, "seed", minimum=0)
     unicursive = fields.get("unicursive")
     if not isinstance(unicursive, bool):
         raise DesignError(f"unicursive {unicursive!r} is not true or false")
@@ -123,16 +129,11 @@ def spec_from_fields(fields: Any, base: str | None = None) -> MazeSpec:
         if not on:
             changes[signs_field] = ()
             continue
-        value = _number(fields, f"{kind}_value", float)
-        if not 0 < value <= 1:
-            raise DesignError(f"{kind} lightness {value} is not in ]0, 1]")
+        value = _fraction(fields, f"{kind}_value", f"{kind} lightness")
         first = Sign(signs[0].shape if signs else "arrow", value)
         changes[signs_field] = (first, *signs[1:])
         if probability_field is not None:
-            probability = _number(fields, f"p_{kind}", float)
-            if not 0 < probability <= 1:
-                raise DesignError(f"{kind} probability {probability} is not in ]0, 1]")
-            changes[probability_field] = probability
+            changes[probability_field] = _fraction(fields, f"p_{kind}", f"{kind} probability")
     try:
         return kept.where(**changes)
     except (ValueError, TypeError) as problem:

@@ -23,13 +23,17 @@ the same path without it, or in that cookie; anything else gets 403. Posts
 also carry the page's CSRF token in the ``X-CSRF-Token`` header and a JSON
 body of at most :data:`MAX_BODY` bytes. ``/files/`` serves nothing outside
 the run folder (404), and bad input gets a 4xx answer naming the problem,
-never a 500.
+never a 500: tokens of any text compare (as bytes), bodies are read by
+:func:`amaze.validation.parse_json` (UTF-8, nesting bounded), numbers must be
+finite, file names too long or looping links are 404s, and a branch whose
+agent cannot be read is a 409 naming the file.
 """
 
 from __future__ import annotations
 
+import hmac
 import io
-import json
+import os
 import secrets
 import threading
 from collections import OrderedDict
@@ -51,7 +55,9 @@ from amaze.agents.trajectories import save_episode_gif
 from amaze.curriculum.picture import render_curriculum
 from amaze.evaluation.policy import record_episode
 from amaze.maze.render import render_maze
+from amaze.runs.config import read_json_object
 from amaze.runs.folder import write_json
+from amaze.validation import parse_json
 from experiments.curate.design import (
     DesignError,
     maze_card,
@@ -74,6 +80,8 @@ PREVIEW_SIDE = 280
 ANIMATION_FRAMES = 120
 #: Previews kept in memory.
 PREVIEW_CACHE = 256
+#: Longest message of an error answer: messages quote what the request sent, which may be long.
+MAX_MESSAGE = 300
 
 
 def _png(image: Image.Image) -> bytes:
@@ -87,9 +95,43 @@ def _cell_size(text: str) -> int:
     return max(6, min(48, PREVIEW_SIDE // max(spec.width, spec.height)))
 
 
+def _same(given: str | None, expected: str) -> bool:
+    """Whether a token from a request is ``expected``, in constant time, for any text.
+
+    ``secrets.compare_digest`` refuses strings with non-ASCII characters (a
+    ``TypeError``); the bytes of any text compare. Lone surrogates are kept
+    (``surrogatepass``): their bytes are not UTF-8, so they never match.
+    """
+    if given is None:
+        return False
+    return hmac.compare_digest(
+        given.encode("utf-8", "surrogatepass"), expected.encode("utf-8", "surrogatepass")
+    )
+
+
+def _body_length(header: str | None) -> int | None:
+    """The ``Content-Length`` header as a number, ``None`` if it is missing or not one.
+
+    Only ASCII digits count (``str.isdigit`` accepts ``"²"``, which ``int``
+    refuses); a value longer than any allowed body is capped rather than
+    converted (``int`` refuses strings of thousands of digits).
+    """
+    if header is None or not (header.isascii() and header.isdigit()):
+        return None
+    return MAX_BODY + 1 if len(header) > len(str(MAX_BODY)) else int(header)
+
+
+def _clipped(message: str) -> str:
+    """``message`` cut to :data:`MAX_MESSAGE` characters (an answer stays short)."""
+    return message if len(message) <= MAX_MESSAGE else message[: MAX_MESSAGE - 3] + "..."
+
+
 def _problem(status: int, message: str, details: Any = None) -> JSONResponse:
-    body: dict[str, Any] = {"error": message}
-    if details is not None:
+    """An error answer: ``{"error": message}``, with ``details`` (a list of messages or None)."""
+    body: dict[str, Any] = {"error": _clipped(message)}
+    if isinstance(details, list):
+        body["details"] = [d if d is None else _clipped(str(d)) for d in details]
+    elif details is not None:
         body["details"] = details
     return JSONResponse(body, status_code=status)
 
@@ -115,41 +157,66 @@ class _Pictures:
         return data
 
     def episode(self, session: CurationSession, stage: int, branch: int, index: int) -> dict:
-        """The branch's agent on maze ``index`` of its stage: figures and a GIF's path."""
+        """The branch's agent on maze ``index`` of its stage: figures and a GIF's path.
+
+        The figures and the GIF are kept in the branch's ``episodes/``; a kept
+        pair that cannot be read (damaged, half gone) is made again.
+        """
         mazes = session.stage_mazes(stage)
         if not 0 <= index < len(mazes):
             raise AnswerError(f"stage {stage} has no maze {index}", status=404)
-        folder = session.out / "stages" / f"stage-{stage}" / f"branch-{branch}" / "episodes"
-        figures_file = folder / f"maze-{index}.json"
+        figures_file = session.finished_branch(stage, branch) / "episodes" / f"maze-{index}.json"
+        gif = figures_file.with_suffix(".gif")
         with self._lock:
             lock = self._making.setdefault(figures_file, threading.Lock())
         with lock:
-            if not figures_file.is_file():
+            figures = _kept_figures(figures_file)
+            if figures is None or not gif.is_file():
                 agent = session.agent(stage, branch)
-                maze = mazes[index]
-                results, trajectory = record_episode(maze, session.description["robot"], agent)
-                gif = folder / f"maze-{index}.gif"
-                save_episode_gif(
-                    maze,
-                    trajectory,
-                    gif,
-                    fps=12,
-                    max_frames=ANIMATION_FRAMES,
-                    cell_size=_cell_size(maze),
-                )
-                write_json(
-                    figures_file,
-                    {
-                        "maze": maze,
-                        "success": bool(results.success[0]),
-                        "steps": int(results.steps[0]),
-                        "collisions": int(results.collisions[0]),
-                        "paper_reward": round(float(results.paper_reward[0]), 4),
-                    },
-                )
-        figures = json.loads(figures_file.read_text(encoding="utf-8"))
-        gif_path = figures_file.with_suffix(".gif").relative_to(session.out)
-        return {**figures, "gif": f"/files/{gif_path.as_posix()}"}
+                figures = _record(mazes[index], session.description["robot"], agent, gif)
+                write_json(figures_file, figures)
+        return {**figures, "gif": f"/files/{gif.relative_to(session.out).as_posix()}"}
+
+
+def _kept_figures(path: Path) -> dict[str, Any] | None:
+    """The figures of an episode made before, ``None`` if there are none or they are damaged."""
+    try:
+        return read_json_object(path, AnswerError, "episode figures")
+    except AnswerError:
+        return None
+
+
+def _record(maze: str, robot: str, agent: Any, gif: Path) -> dict[str, Any]:
+    """``agent`` on ``maze``: its animation saved to ``gif``, and its figures."""
+    results, trajectory = record_episode(maze, robot, agent)
+    save_episode_gif(
+        maze, trajectory, gif, fps=12, max_frames=ANIMATION_FRAMES, cell_size=_cell_size(maze)
+    )
+    return {
+        "maze": maze,
+        "success": bool(results.success[0]),
+        "steps": int(results.steps[0]),
+        "collisions": int(results.collisions[0]),
+        "paper_reward": round(float(results.paper_reward[0]), 4),
+    }
+
+
+def _run_file(run_folder: Path, path: str) -> Path:
+    """The readable file ``path`` of the run folder (already resolved); 404 for anything else.
+
+    Links are followed, but only to files inside the run folder; names too long
+    for the file system, link loops and files that cannot be read are 404s too.
+    """
+    missing = AnswerError(f"no file {path!r} in the run folder", status=404)
+    try:
+        wanted = (run_folder / path).resolve()
+        wanted.relative_to(run_folder)
+        readable = wanted.is_file() and os.access(wanted, os.R_OK)
+    except (ValueError, OSError, RuntimeError):  # RuntimeError: a link loop (Python < 3.13)
+        raise missing from None
+    if not readable:
+        raise missing
+    return wanted
 
 
 def create_app(session: CurationSession, token: str, csrf: str | None = None) -> FastAPI:
@@ -165,26 +232,24 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
     @app.middleware("http")
     async def guard(request: Request, call_next: Callable[[Request], Awaitable[Response]]):
         given = request.query_params.get("token")
-        if given is not None and secrets.compare_digest(given, token):
+        if _same(given, token):
             query = [(k, v) for k, v in request.query_params.multi_items() if k != "token"]
             target = request.url.path + (f"?{urlencode(query)}" if query else "")
             response: Response = RedirectResponse(target, status_code=303)
             response.set_cookie(COOKIE, token, httponly=True, samesite="strict")
             return response
-        cookie = request.cookies.get(COOKIE)
-        if cookie is None or not secrets.compare_digest(cookie, token):
+        if not _same(request.cookies.get(COOKIE), token):
             return _problem(403, "this page needs the token of the URL amaze-curate printed")
         if request.method not in ("GET", "HEAD", "POST"):
             return _problem(405, f"method {request.method} is not allowed")
         if request.method == "POST":
-            sent = request.headers.get("x-csrf-token", "")
-            if not secrets.compare_digest(sent, csrf):
+            if not _same(request.headers.get("x-csrf-token"), csrf):
                 return _problem(403, "the request lacks the page's CSRF token")
-            length = request.headers.get("content-length")
-            if length is None or not length.isdigit():
+            length = _body_length(request.headers.get("content-length"))
+            if length is None:
                 return _problem(411, "a post needs a Content-Length")
-            if int(length) > MAX_BODY:
-                return _problem(413, f"request body of {length} bytes (at most {MAX_BODY})")
+            if length > MAX_BODY:
+                return _problem(413, f"a request body of at most {MAX_BODY} bytes")
             if not request.headers.get("content-type", "").startswith("application/json"):
                 return _problem(415, "a post's body must be JSON")
         return await call_next(request)
@@ -208,10 +273,10 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
         return _problem(problem.status_code, str(problem.detail))
 
     async def json_body(request: Request) -> dict[str, Any]:
-        try:
-            data = json.loads(await request.body())
-        except (ValueError, UnicodeDecodeError):
-            raise AnswerError("the request body is not JSON") from None
+        body = await request.body()
+        if len(body) > MAX_BODY:  # the guard checked the header; this is what came
+            raise AnswerError(f"a request body of at most {MAX_BODY} bytes", status=413)
+        data = parse_json(body, "the request body", error=AnswerError)
         if not isinstance(data, dict):
             raise AnswerError("the request body is not a JSON object")
         return data
@@ -270,14 +335,7 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
 
     @app.get("/files/{path:path}")
     def files(path: str) -> Response:
-        try:
-            wanted = (run_folder / path).resolve()
-            wanted.relative_to(run_folder)
-        except (ValueError, OSError):
-            raise AnswerError(f"no file {path!r} in the run folder", status=404) from None
-        if not wanted.is_file():
-            raise AnswerError(f"no file {path!r} in the run folder", status=404)
-        return FileResponse(wanted)
+        return FileResponse(_run_file(run_folder, path))
 
     app.mount("/static", StaticFiles(directory=str(HERE / "static")), name="static")
     return app

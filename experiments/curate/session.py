@@ -31,7 +31,7 @@ from typing import Any
 from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History, MazeResults
 from amaze.curriculum.human import suggested_mazes
 from amaze.errors import AmazeError, one_line
-from amaze.runs.curriculum import BranchProgress, CurriculumRun
+from amaze.runs.curriculum import BranchProgress, CurriculumRun, branch_folder
 from amaze.runs.lifecycle import RunResult
 from experiments.curate.design import DesignError, maze_card, parse_maze
 
@@ -445,13 +445,35 @@ class CurationSession:
         run = self.run
         return [] if run is None else list(run.records)
 
-    def agent(self, stage: int, branch: int) -> Any:
-        """The trained agent of a finished branch, loaded from its folder."""
-        run = self.run
-        folder = self.out / "stages" / f"stage-{stage}" / f"branch-{branch}"
-        if run is None or not (folder / "result.json").is_file():
+    def finished_branch(self, stage: int, branch: int) -> Path:
+        """The folder of a finished branch of a finished stage (404 for any other).
+
+        ``branch`` is checked against the stage's branches before any path is
+        built from it, so that no number from a request reaches the file system.
+        """
+        mazes = self.stage_mazes(stage)
+        folder = branch_folder(self.out, stage, branch)
+        if not 0 <= branch < len(mazes) or not (folder / "result.json").is_file():
             raise AnswerError(f"stage {stage} has no finished branch {branch}", status=404)
-        return run.load_learner(folder / "agent").agent()
+        return folder
+
+    def agent(self, stage: int, branch: int) -> Any:
+        """The trained agent of a finished branch, loaded from its folder.
+
+        A learner that cannot be read (damaged, tampered with, of another
+        version) is a 409 naming the problem: trainers refuse such files with a
+        ``ValueError`` (an :class:`~amaze.errors.AmazeError` subclass as a rule),
+        whatever their format.
+        """
+        folder = self.finished_branch(stage, branch)
+        run = self.run
+        assert run is not None  # the stage is finished: the run is attached
+        try:
+            return run.load_learner(folder / "agent").agent()
+        except (ValueError, OSError) as problem:
+            raise AnswerError(
+                f"this branch's agent cannot be read: {one_line(problem)}", status=409
+            ) from None
 
     def stage_mazes(self, stage: int) -> list[str]:
         """The mazes of a finished stage (its record is written before its select question)."""

@@ -241,7 +241,7 @@ def test_a_learner_trains_on_ray_as_locally(ray_backend: RayBackend) -> None:
     def trained(backend) -> EvolutionLearner:
         learner = EvolutionLearner.new("neat", {"population_size": 8}, "DD", seed=4)
         with use_backend(backend):
-            learner.train(ROTATED, budget_steps=3_000)
+            learner.train(ROTATED, budget_steps=6_000)
         return learner
 
     local, distributed = trained(LocalBackend()), trained(ray_backend)

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import json
-import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, save_agent
+from evolution.checkpoint import evolution_codec
 from evolution.cmaes import CMAESAlgorithm, CMAESConfig, default_popsize
 from evolution.networks import NetworkPopulation, NetworkSpec
 from evolution.population import PopulationEvaluator
@@ -225,12 +227,13 @@ def constant_fitness(candidates: list[np.ndarray]) -> np.ndarray:
         ({"restarts": 9}, constant_fitness),  # flat fitness: restarts within the window
     ],
 )
-def test_pickle_resume_is_bit_identical(config: dict, fitness) -> None:
+def test_checkpoint_resume_is_bit_identical(config: dict, fitness, tmp_path: Path) -> None:
     straight = run(CMAESAlgorithm(config, "DD", 3), 6, fitness)
     algorithm = CMAESAlgorithm(config, "DD", 3)
     first = run(algorithm, 3, fitness)
     np.random.seed(99)  # noqa: NPY002
-    restored = pickle.loads(pickle.dumps(algorithm))
+    path = write_checkpoint(tmp_path / "state.npz", algorithm, evolution_codec())
+    restored = read_checkpoint(path, evolution_codec(), ValueError, CMAESAlgorithm)
     np.random.standard_normal(5)  # noqa: NPY002
     second = run(restored, 3, fitness)
     assert_same_trace(straight, first + second)

@@ -65,7 +65,7 @@ def test_an_edhucat_run_writes_its_folder(
     for stage, branches in ((0, 1), (1, 2)):
         for branch in range(branches):
             folder = finished / f"stages/stage-{stage}/branch-{branch}"
-            for name in ("result.json", "trajectory.png", "agent/learner.pkl"):
+            for name in ("result.json", "trajectory.png", "agent/learner.npz"):
                 assert (folder / name).exists(), folder / name
             assert not (folder / "checkpoint").exists()
             load_agent(folder / "agent" / "champion.npz")  # an agent file amaze run can play
@@ -99,7 +99,7 @@ def test_resume_after_a_kill_mid_stage(finished: Path, tmp_path: Path) -> None:
         stderr=subprocess.DEVNULL,
     )
     deadline = time.monotonic() + 120
-    while not any(out.glob("stages/stage-1/branch-*/checkpoint/learner.pkl")):
+    while not any(out.glob("stages/stage-1/branch-*/checkpoint/learner.npz")):
         if process.poll() is not None or time.monotonic() > deadline:
             process.kill()
             pytest.fail("the run ended before it could be killed mid-stage")
@@ -246,3 +246,22 @@ def test_the_edens_regime_plays_open_ended_stages_until_its_budget_is_spent(
     assert main(["--replay", str(out), "--out", str(replay), "--no-progress"]) == 0
     assert _decisions(replay) == decisions
     assert _same(_final_champion(replay), _final_champion(out))
+
+
+def test_a_damaged_finished_learner_is_refused_before_training_goes_on(
+    finished: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def damage(path: Path) -> None:
+        # as if killed in the last branch, whose training the resume would do first
+        (path.parents[3] / "stage-1/branch-1/result.json").unlink()
+        path.write_bytes(path.read_bytes()[:100])
+
+    line = refused_resume(
+        main,
+        finished,
+        tmp_path / "run",
+        "stages/stage-0/branch-0/agent/learner.npz",
+        damage,
+        capsys,
+    )
+    assert "stage-0/branch-0/agent/learner.npz" in line and "damaged" in line

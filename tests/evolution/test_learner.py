@@ -12,9 +12,11 @@ import pytest
 
 from amaze.curriculum.learner import Learner
 from amaze.maze import rotations
+from amaze.runs.checkpoint import write_checkpoint
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, read_agent
 from evolution.algorithms import make_algorithm
+from evolution.checkpoint import evolution_codec
 from evolution.learner import LEARNER_FILE, EvolutionLearner, load_learner
 from evolution.neat.compile import genome_to_arrays
 from evolution.population import PopulationEvaluator
@@ -194,7 +196,9 @@ def test_a_session_starts_from_the_inherited_champion_played_on_its_mazes(algo: 
     parent.train(SMALL, 30_000)
     replay = PopulationEvaluator(list(SMALL), "DD").evaluate(parent.agent())
     child = parent.branch(5)
-    child.train(SMALL, replay.env_steps + 1)  # the replay, then one generation
+    # the replay, then one generation, which starts only if the steps left pay its least cost
+    least = child.generation_steps(SMALL)
+    child.train(SMALL, replay.env_steps + least)
     assert child.last_session.generations == 1
     # That generation's best is no better than the parent's champion, which stays.
     assert child.algorithm.champion[1] <= replay.fitness[0]  # (NEAT keeps its elite)
@@ -251,11 +255,14 @@ def test_a_damaged_or_foreign_learner_file_is_refused_by_name(tmp_path: Path) ->
     with pytest.raises(EvolutionConfigError, match=str(path)):
         load_learner(tmp_path)
     learner.version = 99
-    path.write_bytes(pickle.dumps(learner))
+    learner.save(tmp_path)
     with pytest.raises(EvolutionConfigError, match="version 99"):
         load_learner(tmp_path)
-    path.write_bytes(pickle.dumps({"not": "a learner"}))
+    write_checkpoint(path, {"not": "a learner"}, evolution_codec())
     with pytest.raises(EvolutionConfigError, match="does not hold"):
+        load_learner(tmp_path)
+    path.write_bytes(pickle.dumps(learner))
+    with pytest.raises(EvolutionConfigError, match="is a pickle"):
         load_learner(tmp_path)
     path.unlink()
     with pytest.raises(EvolutionConfigError, match="does not exist"):

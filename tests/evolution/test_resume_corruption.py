@@ -5,13 +5,14 @@ and nothing in the folder changed (every file is checked before anything is writ
 from __future__ import annotations
 
 import json
-import pickle
 import shutil
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from amaze.runs.checkpoint import write_checkpoint
+from evolution.checkpoint import evolution_codec
 from evolution.cli import main
 from evolution.run import EvolveConfig, _State, evolve
 from tests.run_folders import RANDOM, directory, missing, refused_resume, snapshot, truncate, write
@@ -51,8 +52,17 @@ def _edit_csv(change: Callable[[list[str]], list[str]]) -> Callable[[Path], None
 
 
 def _old_version(path: Path) -> None:
-    state = _State(algorithm=None, version=1)
-    path.write_bytes(pickle.dumps(state))
+    write_checkpoint(path, _State(algorithm=None, version=1), evolution_codec(_State))
+
+
+def _foreign(path: Path) -> None:
+    write_checkpoint(path, {"generation": 3}, evolution_codec(_State))
+
+
+def _pickled(path: Path) -> None:
+    import pickle
+
+    path.write_bytes(pickle.dumps({"generation": 3}))
 
 
 CASES = {
@@ -60,7 +70,7 @@ CASES = {
     "config missing": ("config.json", missing, "holds no run"),
     "config empty": ("config.json", write(b""), "is not JSON"),
     "config truncated": ("config.json", truncate, "is not JSON"),
-    "config random bytes": ("config.json", write(RANDOM), "cannot be read"),
+    "config random bytes": ("config.json", write(RANDOM), "is not UTF-8 text"),
     "config directory": ("config.json", directory, "is a directory"),
     "config not an object": ("config.json", write(b"[1, 2]"), "does not hold a JSON object"),
     "config wrong type": ("config.json", write(b'{"seed": "zero"}'), "seed 'zero'"),
@@ -91,18 +101,15 @@ CASES = {
         _edit_csv(lambda lines: [lines[0], lines[2], lines[1], lines[3]]),
         "goes back",
     ),
-    # checkpoints/state.pkl
-    "checkpoint missing": ("checkpoints/state.pkl", missing, "is missing"),
-    "checkpoint empty": ("checkpoints/state.pkl", write(b""), "is empty"),
-    "checkpoint truncated": ("checkpoints/state.pkl", truncate, "is damaged"),
-    "checkpoint random bytes": ("checkpoints/state.pkl", write(RANDOM), "is damaged"),
-    "checkpoint directory": ("checkpoints/state.pkl", directory, "is a directory"),
-    "checkpoint wrong type": (
-        "checkpoints/state.pkl",
-        write(pickle.dumps({"generation": 3})),
-        "does not hold a _State",
-    ),
-    "checkpoint old version": ("checkpoints/state.pkl", _old_version, "version 1"),
+    # checkpoints/state.npz
+    "checkpoint missing": ("checkpoints/state.npz", missing, "is missing"),
+    "checkpoint empty": ("checkpoints/state.npz", write(b""), "is empty"),
+    "checkpoint truncated": ("checkpoints/state.npz", truncate, "is damaged"),
+    "checkpoint random bytes": ("checkpoints/state.npz", write(RANDOM), "not an amaze checkpoint"),
+    "checkpoint directory": ("checkpoints/state.npz", directory, "is a directory"),
+    "checkpoint wrong type": ("checkpoints/state.npz", _foreign, "does not hold a _State"),
+    "checkpoint old version": ("checkpoints/state.npz", _old_version, "version 1"),
+    "checkpoint a pickle": ("checkpoints/state.npz", _pickled, "is a pickle"),
     # champion.npz
     "champion empty": ("champion.npz", write(b""), "champion.npz"),
     "champion truncated": ("champion.npz", truncate, "champion.npz"),
@@ -126,10 +133,12 @@ def test_a_checkpoint_with_a_code_payload_runs_nothing(
     out = tmp_path / "run"
     shutil.copytree(finished_run, out)
     marker = tmp_path / "marker"
-    (out / "checkpoints" / "state.pkl").write_bytes(pickle.dumps(_Payload(marker)))
+    import pickle
+
+    (out / "checkpoints" / "state.npz").write_bytes(pickle.dumps(_Payload(marker)))
     before = snapshot(out)
     assert main(["--resume", str(out)]) == 2
-    assert "refused" in capsys.readouterr().err
+    assert "is a pickle" in capsys.readouterr().err
     assert not marker.exists() and snapshot(out) == before
 
 

@@ -16,9 +16,9 @@ import pytest
 from amaze.runs.checkpoint import read_checkpoint
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, read_agent
+from evolution.checkpoint import evolution_codec
 from evolution.cli import main
-from evolution.config import CHECKPOINT_ALLOWLIST
-from evolution.run import EvolveConfig, evolve, resume
+from evolution.run import EvolutionRun, EvolveConfig, _State, evolve, resume
 
 SMALL_MAZES = ["M0_5x5_U", "M1_5x5_C1"]
 ROOT = Path(__file__).resolve().parents[2]
@@ -54,7 +54,7 @@ def test_run_folder(tmp_path: Path, algo: str) -> None:
     for name in ("config.json", "progress.csv", "champion.npz", "summary.json", "fitness.png"):
         assert (out / name).stat().st_size > 0, name
     state = read_checkpoint(
-        out / "checkpoints" / "state.pkl", CHECKPOINT_ALLOWLIST, EvolutionConfigError, object
+        out / "checkpoints" / "state.npz", evolution_codec(_State), EvolutionConfigError, object
     )
     assert state.generation == 4 and state.steps == result.env_steps  # the last one is saved
     assert len(list((out / "trajectories").glob("*.png"))) == 4
@@ -75,13 +75,6 @@ def test_run_folder(tmp_path: Path, algo: str) -> None:
     assert metadata["fitness"] == pytest.approx(result.summary["champion_fitness"])
     assert metadata["mazes"] == SMALL_MAZES and metadata["algorithm"] == algo
     assert load_agent(out / "champion.npz").robot.to_string() == "DD"
-
-
-def test_step_budget_stops_after_the_generation_that_reaches_it(tmp_path: Path) -> None:
-    result = evolve(_config("neat", budget_steps=20_000, max_generations=None), tmp_path / "r")
-    rows = _rows(tmp_path / "r")
-    assert result.env_steps >= 20_000
-    assert int(rows[-2]["steps"]) < 20_000  # one generation fewer would not have reached it
 
 
 def test_seconds_budget(tmp_path: Path) -> None:
@@ -140,7 +133,7 @@ def test_cli_with_a_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[st
 def _kill_when(process: subprocess.Popen, out: Path, generations: int) -> None:
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
-        checkpoint = out / "checkpoints" / "state.pkl"
+        checkpoint = out / "checkpoints" / "state.npz"
         if checkpoint.exists() and (out / "progress.csv").exists():
             if len(_rows(out)) >= generations:
                 break
@@ -182,3 +175,63 @@ def test_resume_after_a_kill_reaches_the_same_champion(tmp_path: Path, algo: str
     summary = json.loads((out / "summary.json").read_text())
     assert summary["success_rate"] == whole.summary["success_rate"]
     assert summary["normalized_reward"] == whole.summary["normalized_reward"]
+
+
+def test_a_generation_starts_only_if_the_budget_pays_its_least_cost(tmp_path: Path) -> None:
+    with pytest.raises(EvolutionConfigError, match="budget_steps 100 cannot pay one generation"):
+        evolve(_config("cmaes", budget_steps=100, max_generations=None), tmp_path / "small")
+    assert not (tmp_path / "small").exists()
+    config = _config("neat", budget_steps=20_000, max_generations=None)
+    evolve(config, tmp_path / "r")
+    rows = _rows(tmp_path / "r")
+    run = EvolutionRun(tmp_path / "r", EvolveConfig.from_dict(config))
+    run.state = read_checkpoint(
+        tmp_path / "r/checkpoints/state.npz", evolution_codec(_State), EvolutionConfigError, _State
+    )
+    least, _ = run.generation_steps()
+    assert 20_000 - int(rows[-1]["steps"]) < least  # no budget left for another generation
+    assert 20_000 - int(rows[-2]["steps"]) >= least  # the last one started with its least cost paid
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["--seed", "3", "--stages", "4"], "--seed, --stages would be ignored"),
+        (["--budget-steps", "9"], "--budget-steps would be ignored"),
+        (["--out", "elsewhere"], "--out would be ignored"),
+        (["--config", "c.json"], "--config would be ignored"),
+    ],
+)
+def test_resume_refuses_the_options_it_would_ignore(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], words: str
+) -> None:
+    assert main(["--resume", str(tmp_path), *argv]) == 2
+    assert words in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["--seed", "4294967296"], "seed 4294967296 is not an integer in [0, 4294967295]"),
+        (["--seed", "4294967295", "--replicates", "2"], "reaches seed 4294967296"),
+        (["--regime", "interpolation", "--stages", "1"], "stages 1: an interpolation"),
+        (["--replay", "x", "--seed", "2"], "--replay reruns the replayed run's config.json"),
+    ],
+)
+def test_options_out_of_range_are_refused_before_anything_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], words: str
+) -> None:
+    assert main([*argv, "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_run_of_the_other_trainer_is_named_with_its_command(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "config.json").write_text(json.dumps({"algo": "ppo", "hyperparameters": {}}))
+    assert main(["--resume", str(tmp_path)]) == 2
+    assert "holds a run of amaze-train" in capsys.readouterr().err
+    assert main(["--replay", str(tmp_path), "--out", str(tmp_path / "new")]) == 2
+    assert "use amaze-train for it" in capsys.readouterr().err

@@ -5,15 +5,19 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import httpx
 import pytest
 
+from amaze.errors import UsageError
+from experiments.curate import cli
 from experiments.curate.cli import exposure_warning, main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -72,6 +76,139 @@ def test_only_a_persons_run_resumes_on_the_page(tmp_path: Path, capsys) -> None:
     EvolutionRun.fresh({**config, "branches": 1, "budget_steps": 4000}, out)
     assert main(["--resume", str(out), "--no-browser"]) == 2
     assert "'random'" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def killed_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A person's session of 2 stages x 2 branches (CMA-ES) killed at its final selection.
+
+    Made as a scripted run whose config then names the person as its curator,
+    and whose last decision and final files are removed: what a server killed
+    while the person looks at the last stage's branches leaves.
+    """
+    from evolution.run import EvolutionRun
+
+    out = tmp_path_factory.mktemp("killed") / "me"
+    config = {"algo": "cmaes", "regime": "edhucat", "curator": "random", "stages": 2}
+    EvolutionRun.fresh({**config, "branches": 2, "budget_steps": 12000}, out)
+    decisions = out / "decisions.jsonl"
+    assert len(decisions.read_text().splitlines()) == 4  # both stages played
+    for name in ("summary.json", "curriculum.png", "progress.png", "trajectories"):
+        shutil.rmtree(out / name) if (out / name).is_dir() else (out / name).unlink()
+    decisions.write_text("".join(decisions.read_text().splitlines(keepends=True)[:3]))
+    data = json.loads((out / "config.json").read_text())
+    (out / "config.json").write_text(json.dumps({**data, "curator": "human"}))
+    # the branches were trained under that config: they record its digest
+    digest = EvolutionRun(out, EvolutionRun.read_config(out)).config_digest
+    for name in ("result.json", "branch.json"):
+        for path in out.glob(f"stages/*/*/{name}"):
+            _set(path, config_sha256=digest)
+    return out
+
+
+def _lines(path: Path, change: Callable[[list[dict]], list[dict]]) -> None:
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    path.write_text("".join(json.dumps(line) + "\n" for line in change(lines)))
+
+
+def _damage(folder: Path) -> None:
+    for path in folder.iterdir():
+        path.write_bytes(b"\x00damaged")
+
+
+def _set(path: Path, **values: object) -> None:
+    path.write_text(json.dumps({**json.loads(path.read_text()), **values}))
+
+
+BRANCH = Path("stages/stage-1/branch-1")
+#: Damage done to a killed session, and what the error line names.
+TAMPERED = {
+    "choice out of range": (
+        lambda out: _lines(out / "decisions.jsonl", lambda d: [d[0], {**d[1], "choice": 5}, d[2]]),
+        "choice 5",
+    ),
+    "decisions lost": (
+        lambda out: _lines(out / "decisions.jsonl", lambda d: d[:1]),
+        "does not give branch 0 of stage 1",
+    ),
+    "decisions not JSON": (
+        lambda out: (out / "decisions.jsonl").write_text("[" * 30000),
+        "decisions.jsonl",
+    ),
+    "another maze decided": (
+        lambda out: _lines(
+            out / "decisions.jsonl",
+            lambda d: [*d[:2], {**d[2], "mazes": ["M4_6x6_C1", d[2]["mazes"][1]]}],
+        ),
+        "branch-0/result.json",
+    ),
+    "result of another stage": (
+        lambda out: _set(out / BRANCH / "result.json", stage=2),
+        "branch-1/result.json",
+    ),
+    "result damaged": (
+        lambda out: (out / BRANCH / "result.json").write_bytes(b"\xff"),
+        "branch-1/result.json",
+    ),
+    "agent damaged": (lambda out: _damage(out / BRANCH / "agent"), str(BRANCH / "agent")),
+    "agent missing": (
+        lambda out: shutil.rmtree(out / BRANCH / "agent"),
+        str(BRANCH / "agent"),
+    ),
+}
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {
+        str(path.relative_to(folder)): path.read_bytes()
+        for path in sorted(folder.rglob("*"))
+        if path.is_file()
+    }
+
+
+@pytest.mark.parametrize("damage", TAMPERED, ids=list(TAMPERED))
+def test_a_resume_with_bad_files_is_refused_before_the_page_is_served(
+    damage: str,
+    killed_session: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    out = tmp_path / "me"
+    shutil.copytree(killed_session, out)
+    tamper, named = TAMPERED[damage]
+    tamper(out)
+    before = _snapshot(out)
+
+    def serve(host: str, port: int) -> None:
+        raise AssertionError("the page is served for a session that cannot resume")
+
+    monkeypatch.setattr(cli, "_listen", serve)
+    assert main(["--resume", str(out), "--no-browser"]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), captured.err
+    assert named in lines[0]
+    assert captured.out == ""
+    assert _snapshot(out) == before  # nothing changed
+
+
+def test_a_resume_checks_every_agent_the_summary_reads(
+    killed_session: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    out = tmp_path / "me"
+    shutil.copytree(killed_session, out)
+
+    def serve(host: str, port: int) -> None:
+        raise UsageError("the page would be served now")
+
+    monkeypatch.setattr(cli, "_listen", serve)
+    assert main(["--resume", str(out), "--no-browser"]) == 2
+    assert capsys.readouterr().err == "error: the page would be served now\n"
+    # stage 1 was trained from stage 0's agent already, but the summary reads it again
+    _damage(out / "stages" / "stage-0" / "branch-0" / "agent")
+    assert main(["--resume", str(out), "--no-browser"]) == 2
+    assert "stage-0/branch-0/agent" in capsys.readouterr().err
 
 
 class Page:

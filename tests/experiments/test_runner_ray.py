@@ -90,7 +90,7 @@ def test_a_run_whose_ray_worker_is_killed_resumes_from_its_checkpoint(
     runner.start()
     try:
         # kill -9 the Ray worker half-way through the run, after a checkpoint
-        checkpoint = distributed.run_folder(run) / "checkpoints" / "state.pkl"
+        checkpoint = distributed.run_folder(run) / "checkpoints" / "state.npz"
         wait_until(lambda: checkpoint.is_file() and distributed.fraction(run) > 0.2)
         log = distributed.log_file(run).read_text()
         worker = int(re.search(r"Ray task on \S+, worker process (\d+)", log)[1])

@@ -114,3 +114,34 @@ def test_coevolution_config_refusals(changes: dict, bad: str) -> None:
 def test_eight_environments_take_batches_of_two_mazes() -> None:
     config = TrainConfig.from_dict({"regime": "coevolution", "n_envs": 8})
     assert config.coevolution == {"batch": 2}
+
+
+def test_a_run_checkpoints_its_first_round_and_never_passes_its_budget(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # a budget that cannot pay one rollout (20 steps) is refused before the folder is written
+    small = [*ARGS[:5], "19", *ARGS[6:]]
+    assert main([*small, "--out", str(tmp_path / "small")]) == 2
+    assert "cannot pay one rollout (20 steps" in capsys.readouterr().err
+    assert not (tmp_path / "small").exists()
+    # killed right after round 1 (eval_every 1000: no checkpoint due by steps), resumed
+    out = tmp_path / "run"
+    argv = [*ARGS[:5], "50", "--eval-every", "1000", "--no-progress", "--no-tensorboard"]
+
+    class Killed(Exception):
+        pass
+
+    def round_then_die(self):
+        if self.state.round == 1:
+            raise Killed
+        return original(self)
+
+    original = SB3CoevolutionRun.round
+    monkeypatch.setattr(SB3CoevolutionRun, "round", round_then_die)
+    with pytest.raises(Killed):
+        main([*argv, "--config", str(_config(tmp_path)), "--out", str(out)])
+    assert (out / "checkpoints" / "state.npz").is_file()
+    monkeypatch.setattr(SB3CoevolutionRun, "round", original)
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    rows = _rows(out, "progress.csv")
+    assert [int(r["steps"]) for r in rows] == [20, 40]  # a third rollout would pass 50

@@ -140,7 +140,8 @@ def test_the_edens_regime_runs_open_ended_epochs_of_the_papers_size(tmp_path: Pa
     summary = json.loads((out / "summary.json").read_text())
     # 1200 // (3 * 10) = 40 steps a branch: two of A2C's rollouts (5 steps x 4 envs)
     assert summary["stages_played"] >= 5 and summary["epochs"] == 10
-    assert summary["env_steps"] >= 1200 * 0.99
+    # spent to the last whole rollout it could pay: a budget is a hard limit
+    assert 1200 - 20 <= summary["env_steps"] <= 1200
     assert _decisions(out)[-1]["kind"] == "select"
 
 

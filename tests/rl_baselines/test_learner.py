@@ -44,14 +44,18 @@ def _same(a: list[np.ndarray], b: list[np.ndarray]) -> bool:
 OBSERVATIONS = np.random.default_rng(0).random((16, 8)).astype(np.float32)
 
 
-def test_a_session_is_spent_in_whole_rollouts_at_least_one() -> None:
+def test_a_session_is_spent_in_whole_rollouts_never_past_its_budget() -> None:
     learner = _learner()
     calls: list[int] = []
     outcome = learner.train(TRIVIAL, 70, checkpoint=lambda: calls.append(learner.session["steps"]))
     assert outcome.env_steps == 60 and not outcome.converged and outcome.seconds > 0
     assert calls == [0, 20, 40]  # one evaluation and checkpoint per rollout start (eval_every 20)
     assert learner.model.num_timesteps == 60 and learner.session is None
-    assert learner.train(TRIVIAL, 7).env_steps == ROLLOUT  # less than a rollout: one rollout
+    before = [p.detach().clone() for p in learner.model.policy.parameters()]
+    assert learner.train(TRIVIAL, 7).env_steps == 0  # less than a rollout: none
+    after = list(learner.model.policy.parameters())
+    assert all(torch.equal(a, b) for a, b in zip(before, after, strict=True))
+    assert learner.train(TRIVIAL, ROLLOUT).env_steps == ROLLOUT
 
 
 def test_evaluations_and_checkpoints_follow_eval_every() -> None:

@@ -40,7 +40,7 @@ MODEL = "checkpoints/model.zip"
 CASES = {
     "config missing": ("config.json", missing, "holds no run"),
     "config empty": ("config.json", write(b""), "is not JSON"),
-    "config random bytes": ("config.json", write(RANDOM), "cannot be read"),
+    "config random bytes": ("config.json", write(RANDOM), "is not UTF-8 text"),
     "config directory": ("config.json", directory, "is a directory"),
     "config wrong type": ("config.json", edit_json(n_envs="four"), "n_envs 'four'"),
     "config bad hyperparameter": (
@@ -65,7 +65,7 @@ CASES = {
     "model directory": (MODEL, directory, "model.zip"),
     "state missing": (STATE, missing, "is missing"),
     "state empty": (STATE, write(b""), "is not JSON"),
-    "state random bytes": (STATE, write(RANDOM), "cannot be read"),
+    "state random bytes": (STATE, write(RANDOM), "is not UTF-8 text"),
     "state directory": (STATE, directory, "is a directory"),
     "state not an object": (STATE, write(b"[]"), "does not hold a JSON object"),
     "state wrong steps": (STATE, edit_json(num_timesteps="x"), "num_timesteps 'x'"),

@@ -330,3 +330,14 @@ def test_a_run_folder_of_a_config_without_budget_seconds_resumes_as_before(
     summary = train_module.resume(out).summary
     assert summary["env_steps"] == 40 and summary["budget_seconds"] is None
     assert [int(r["steps"]) for r in _progress(out)] == [0, 20, 40]
+
+
+def test_a_direct_run_learns_whole_rollouts_within_its_budget(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["--algo", "a2c", "--no-tensorboard", "--no-progress"]
+    assert main([*args, "--budget-steps", "19", "--out", str(tmp_path / "small")]) == 2
+    assert "cannot pay one rollout (20 steps: n_steps 5 x n_envs 4)" in capsys.readouterr().err
+    assert not (tmp_path / "small").exists()
+    summary = train({"algo": "a2c", "budget_steps": 50, "tensorboard": False}, tmp_path / "r")
+    assert summary.env_steps == 40  # two rollouts of 20: a third would pass 50

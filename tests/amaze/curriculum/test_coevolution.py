@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +20,7 @@ from amaze.curriculum.coevolution import (
 )
 from amaze.curriculum.validation import reserved_seeds
 from amaze.maze.spec import MazeSpec
+from amaze.runs.checkpoint import StateCodec, curriculum_classes, read_checkpoint, write_checkpoint
 
 TARGET = "M2000007_20x20_C1_l.25_L.25_t.5_T.5"
 
@@ -202,7 +203,7 @@ def test_new_mazes_are_family_mazes_or_mutants_of_members() -> None:
     assert origins == {"replay", "family", "mutant"}
 
 
-def test_same_seed_same_population_and_a_pickle_goes_on_identically() -> None:
+def test_same_seed_same_population_and_a_checkpoint_goes_on_identically(tmp_path: Path) -> None:
     def step(population: MazePopulation, k: int) -> list[str]:
         batch = population.propose()
         population.update(batch, [_result((k + i) % 5 / 4) for i in range(len(batch))])
@@ -211,7 +212,9 @@ def test_same_seed_same_population_and_a_pickle_goes_on_identically() -> None:
     a, b = _population(), _population()
     history = [step(a, k) for k in range(12)]
     assert history == [step(b, k) for k in range(12)]
-    copy = pickle.loads(pickle.dumps(a))
+    codec = StateCodec(curriculum_classes())
+    path = write_checkpoint(tmp_path / "state.npz", a, codec)
+    copy = read_checkpoint(path, codec, ValueError, MazePopulation)
     assert [step(copy, k) for k in range(12, 30)] == [step(a, k) for k in range(12, 30)]
     assert [r.to_row() for r in copy.records] == [r.to_row() for r in a.records]
     other = MazePopulation(TARGET, a.config, seed=4)

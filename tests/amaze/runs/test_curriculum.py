@@ -245,7 +245,7 @@ def _record(line: int, **changes):
 @pytest.mark.parametrize(
     ("damage", "message"),
     [
-        (_damaged(2, "{not json"), "line 3: not JSON"),
+        (_damaged(2, "{not json"), "line 3: is not JSON"),
         (_damaged(2, "[1, 2]"), "line 3: not a JSON object"),
         (_record(2, kind="select"), "line 3: stage 1 kind 'select'"),
         (_record(2, mazes=["M5_8x8_X9"]), "line 3: .*not a list of 2 maze strings"),

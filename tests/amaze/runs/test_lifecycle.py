@@ -164,7 +164,7 @@ def test_bad_config_fails_before_anything_is_written(tmp_path: Path) -> None:
     [
         (None, "holds no run"),
         (b"{not json", "is not JSON"),
-        (b"\xff\xfe\x00binary", "cannot be read"),
+        (b"\xff\xfe\x00binary", "is not UTF-8 text"),
         (b"[1, 2]", "does not hold a JSON object"),
         (b'{"steps": "many"}', "steps 'many'"),
         (b'{"steps": 2, "shape": 1}', "'shape'"),

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import hashlib
-import pickle
 import random
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from amaze.agents.engine import BatchEngine
 from amaze.evaluation.policy import run_episodes
+from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
+from evolution.checkpoint import evolution_codec
 from evolution.neat import NeatAlgorithm, NeatConfig
 from tests.evolution.neat.conftest import evolve, fingerprint
 
@@ -53,16 +55,16 @@ def test_evolution_is_deterministic_and_isolated_from_global_random():
     assert runs[0][0] != runs[2][0]
 
 
-def test_checkpoint_resumes_bit_identically():
+def test_checkpoint_resumes_bit_identically(tmp_path: Path):
     config = NeatConfig(population_size=30, add_node_rate=0.2, add_connection_rate=0.3)
     straight = NeatAlgorithm(config, "DD", seed=6)
     evolve(straight, 5)
     resumed = NeatAlgorithm(config, "DD", seed=6)
     evolve(resumed, 2)
-    blob = pickle.dumps(resumed)
+    path = write_checkpoint(tmp_path / "state.npz", resumed, evolution_codec())
     random.seed(0)
     random.random()
-    resumed = pickle.loads(blob)
+    resumed = read_checkpoint(path, evolution_codec(), ValueError, NeatAlgorithm)
     evolve(resumed, 3)
     assert resumed.generation == straight.generation == 5
     assert fingerprint(resumed.ask()) == fingerprint(straight.ask())

@@ -53,11 +53,12 @@ class EpisodeEndedError(AmazeError):
 
 
 class MazeStringWarning(UserWarning):
-    """A token of a maze string was accepted but has no effect on the maze.
+    """A token of a maze string, or part of one, was accepted but has no effect on the maze.
 
     The reference library silently ignores such tokens (``l.25`` without any
-    ``L`` sign, ``L.25`` without ``l``); we keep accepting them, with the same
-    maze as result, but say so.
+    ``L`` sign, ``L.25`` without ``l``) and whatever follows the flags ``U``
+    and ``R`` (``Ux`` is ``U``, ``UR`` is ``U`` alone); we keep accepting them,
+    with the same maze as result, but say so.
     """
 
 

@@ -36,12 +36,14 @@ def _libraries() -> StateCodec:
     import cma.sigma_adaptation
     from deap import tools
 
+    import evolution.generations  # noqa: F401 (the state's ChosenAgent)
     from evolution.algorithms import ALGORITHMS, algorithm_class
 
     for name in ALGORITHMS:
         algorithm_class(name)
     classes = [
         *package_classes("evolution.cmaes"),
+        *package_classes("evolution.generations"),
         *package_classes("evolution.networks"),
         *package_classes("evolution.neat"),
         *curriculum_classes(),

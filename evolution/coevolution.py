@@ -28,7 +28,7 @@ seconds everything the loop does. Where the time goes is reported in
 logging and checkpoints).
 
 **Run folder**: the direct regime's (``config.json``, ``progress.csv``,
-``checkpoints/state.npz``, ``champion.npz``, ``summary.json``) and
+``checkpoints/state.npz``, ``agent.npz``, ``summary.json``) and
 
 * ``mazes.csv``: every maze that was ever a member of the population (its
   string, origin, parent, birth, retirement, last scores and difficulty
@@ -77,11 +77,10 @@ from amaze.maze.render import save_picture
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from amaze.runs.folder import ProgressLog, write_bytes
 from evolution import EvolutionConfigError
-from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
 from evolution.backends import current_backend
 from evolution.checkpoint import evolution_codec
-from evolution.generations import GenerationLoop
+from evolution.generations import ChosenAgent, GenerationLoop
 from evolution.population import EvaluationBackend, PopulationEvaluator
 
 __all__ = ["EvolutionCoevolutionRun", "save_coevolution_plot"]
@@ -111,7 +110,8 @@ class _State:
     champion_fitness: float = -np.inf
     champion_success: float = 0.0
     champion_generation: int = 0
-    champion: tuple[dict[str, np.ndarray], dict] | None = None
+    #: The champion: the best agent on the validation mazes so far.
+    agent: ChosenAgent | None = None
     time: dict[str, float] = field(default_factory=lambda: dict.fromkeys(TIME_PARTS[:-1], 0.0))
     version: int = CHECKPOINT_VERSION
     #: The SHA-256 of the run's ``config.json`` (:attr:`~amaze.runs.lifecycle.Run.config_digest`).
@@ -123,10 +123,11 @@ class EvolutionCoevolutionRun(GenerationLoop):
 
     progress_fields = PROGRESS_FIELDS
     outputs: ClassVar[tuple[str, ...]] = (
-        "champion.npz", "summary.json", "progress.csv", "mazes.csv", "population.png",
+        "agent.npz", "summary.json", "progress.csv", "mazes.csv", "population.png",
         "coevolution.png",
     )  # fmt: skip
     state: _State  # type: ignore[assignment]
+    regime_agent_rule = "best-validation"
 
     @cached_property
     def options(self) -> MazePopulationConfig:
@@ -180,16 +181,6 @@ class EvolutionCoevolutionRun(GenerationLoop):
         self.state = state
         self.validation  # noqa: B018
         return state.generation
-
-    def train(self, progress_bar: bool) -> None:
-        if self.state.generation:
-            self.save_champion()  # the checkpoint's champion, whatever was written after it
-        super().train(progress_bar)
-
-    def final_agent(self) -> Any:
-        if self.state.champion is None:
-            raise EvolutionConfigError("the run evaluated no generation (budget too small?)")
-        return load_agent(self.out / "champion.npz")
 
     def figures(self) -> dict[str, Any]:
         c, s = self.config, self.state
@@ -278,6 +269,7 @@ class EvolutionCoevolutionRun(GenerationLoop):
         clock.lap("mazes")
         s.generation += 1
         validation = validation_success = float("nan")
+        champion = None
         options = self.options
         if (s.generation - 1) % options.validation_every == 0:
             top = np.argsort(-result.fitness, kind="stable")[: options.validation_candidates]
@@ -290,13 +282,14 @@ class EvolutionCoevolutionRun(GenerationLoop):
             if validation > s.champion_fitness:
                 s.champion_fitness, s.champion_success = validation, validation_success
                 s.champion_generation = s.generation
-                s.champion = algorithm.candidate_arrays(candidates[top[first]])
-                self.save_champion()
+                champion = algorithm.candidate_arrays(candidates[top[first]])
             s.steps += checked.env_steps
             s.validation_steps += checked.env_steps
             clock.lap("validation")
         s.steps += result.env_steps
         s.eval_seconds += result.seconds
+        if champion is not None:
+            self.keep_champion(*champion)
         diversity = s.mazes.diversity()
         clock.lap("mazes")
         s.seconds += clock.total
@@ -318,26 +311,22 @@ class EvolutionCoevolutionRun(GenerationLoop):
             "diversity": round(diversity, 4),
         }
 
-    def save_champion(self) -> None:
+    def keep_champion(self, arrays: dict[str, np.ndarray], architecture: dict) -> None:
+        """The generation's champion becomes the agent the run hands over."""
         s, c = self.state, self.config
-        if s.champion is None:
-            return
-        arrays, architecture = s.champion
-        save_agent(
-            self.out / "champion.npz",
-            arrays,
-            {
-                "architecture": architecture,
-                "robot": c.robot,
-                "regime": c.regime,
-                "target": c.target,
-                "validation_mazes": self.validation_mazes,
-                "fitness": s.champion_fitness,
-                "fitness_measure": c.fitness,
-                "algorithm": c.algo,
-                "generation": s.champion_generation,
-                "seed": c.seed,
-            },
+        extra = {
+            "regime": c.regime,
+            "target": c.target,
+            "validation_mazes": self.validation_mazes,
+            "fitness": s.champion_fitness,
+        }
+        s.agent = ChosenAgent(
+            {k: np.array(v) for k, v in arrays.items()},
+            dict(architecture),
+            s.champion_generation,
+            s.steps,
+            (s.champion_fitness,),
+            extra,
         )
 
     def save_checkpoint(self) -> None:

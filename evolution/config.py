@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from amaze.curriculum.regimes import REGIMES
-from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.runs.config import option
 from amaze.runs.curriculum import CurriculumConfig
 from amaze.validation import check_integer, check_number
@@ -49,19 +48,15 @@ class EvolveConfig(CurriculumConfig):
     error = EvolutionConfigError
     options_field = "algorithm"
     supported_regimes = REGIMES  # coevolution included (evolution.coevolution)
+    agent_rules = ("best-fitness", "final", "best-eval")
 
     algo: str = option("cmaes", "search algorithm", choices=tuple(ALGORITHMS))
-    mazes: list[str] = option(
-        default_factory=lambda: [PAPER_TRAINING_MAZE],
-        help="training mazes of the direct regime, each played in its 4 rotations"
-        " (default: the paper's)",
-    )
     fitness: str = option(
         "paper_reward", "mean of this over the training episodes", choices=FITNESS
     )
     budget_steps: int | None = option(3_000_000, "environment steps of the scored episodes")
     budget_seconds: float | None = option(None, "wall-clock seconds")
-    max_generations: int | None = option(None, "generations")
+    max_generations: int | None = option(None, "generations", regimes=("direct", "coevolution"))
     checkpoint_seconds: float = option(
         10.0, "seconds of run time between checkpoints (0: after every generation)"
     )
@@ -75,10 +70,6 @@ class EvolveConfig(CurriculumConfig):
         """Check every field; raise :class:`EvolutionConfigError` naming the bad value."""
         super().validate()
         algorithm_class(self.algo)  # an unknown name is refused, naming the choices
-        if isinstance(self.mazes, str):
-            self.mazes = [m for m in self.mazes.split(",") if m]
-        if not isinstance(self.mazes, list) or not self.mazes:
-            raise EvolutionConfigError(f"mazes {self.mazes!r} is not a non-empty list of strings")
         if self.fitness not in FITNESS:
             raise EvolutionConfigError(
                 f"fitness {self.fitness!r} is not one of {', '.join(FITNESS)}"
@@ -105,33 +96,21 @@ class EvolveConfig(CurriculumConfig):
         )
         if not isinstance(self.algorithm, dict):
             raise EvolutionConfigError(f"algorithm {self.algorithm!r} is not a JSON object")
+        # every option the algorithm uses, defaults filled in: config.json says what ran
+        self.algorithm = algorithm_class(self.algo).config_class.from_dict(self.algorithm).to_dict()
         return self
 
     def _check_curriculum(self) -> None:
-        """A curriculum's budget is env steps and/or seconds; its mazes lead to ``target``."""
-        regime = self.regime
-        if self.max_generations is not None:
-            raise EvolutionConfigError(
-                f"max_generations {self.max_generations!r} applies to the direct regime; the"
-                f" {regime} regime's budget is budget_steps or budget_seconds"
-            )
+        """A curriculum's budget is env steps and/or seconds."""
         if self.budget_steps is None and self.budget_seconds is None:
-            raise EvolutionConfigError(f"the {regime} regime needs budget_steps or budget_seconds")
-        if self.mazes != [PAPER_TRAINING_MAZE]:
             raise EvolutionConfigError(
-                f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"
-                f" {regime} regime makes its own mazes, leading to target (--target)"
+                f"the {self.regime} regime needs budget_steps or budget_seconds"
             )
 
     def _coevolution_defaults(self) -> None:
-        """The coevolution regime makes its own mazes; CMA-ES options default to the regime's."""
+        """CMA-ES options of the coevolution regime default to the regime's."""
         if self.regime != "coevolution":
             return
-        if self.mazes != [PAPER_TRAINING_MAZE]:
-            raise EvolutionConfigError(
-                f"mazes {','.join(map(str, self.mazes))!r} apply to the direct regime; the"
-                " coevolution regime evolves its own, leading to target (--target)"
-            )
         if self.algo == "cmaes" and isinstance(self.algorithm, dict):
             self.algorithm = {**copy.deepcopy(COEVOLUTION_CMAES), **self.algorithm}
 

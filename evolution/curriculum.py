@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 
 from amaze.maze import rotations
 from amaze.runs.curriculum import CurriculumRun
+from amaze.runs.folder import write_bytes
 from evolution.algorithms import make_algorithm
 from evolution.config import EvolveConfig
 from evolution.learner import EvolutionLearner, load_learner
@@ -35,7 +36,8 @@ class EvolutionCurriculumRun(CurriculumRun):
 
     config_class = EvolveConfig
     config: EvolveConfig
-    outputs: ClassVar[tuple[str, ...]] = (*CurriculumRun.outputs, "stages/*/*/agent/champion.npz")
+    agent_file = "agent.npz"
+    outputs: ClassVar[tuple[str, ...]] = ("agent.npz", *CurriculumRun.outputs)
 
     def start(self) -> None:
         """Bad algorithm options fail here, before anything is written; then the curator."""
@@ -69,6 +71,10 @@ class EvolutionCurriculumRun(CurriculumRun):
     def load_learner(self, folder: Path) -> EvolutionLearner:
         return load_learner(folder)
 
+    def save_agent(self, agent: Any, path: Path) -> None:
+        """The final learner's champion, as its branch's ``agent/champion.npz`` holds it."""
+        write_bytes(path, (self._final_folder() / "agent" / "champion.npz").read_bytes())
+
     def learner_figures(self) -> dict[str, Any]:
         """The algorithm and fitness measure, the final learner's and the run's generations.
 
@@ -78,13 +84,15 @@ class EvolutionCurriculumRun(CurriculumRun):
         """
         c = self.config
         generations, steps, seconds = 0, 0, 0.0
-        for record in self.records:
-            for candidate in record.candidates:
-                session = load_learner(self._branch_folder(candidate) / "agent").last_session
-                if session is not None:
-                    generations += session.generations
-                    steps += session.steps
-                    seconds += session.eval_seconds
+        folders = [self._branch_folder(k) for record in self.records for k in record.candidates]
+        if self.finishing is not None:
+            folders.append(self._final_folder())
+        for folder in folders:
+            session = load_learner(folder / "agent").last_session
+            if session is not None:
+                generations += session.generations
+                steps += session.steps
+                seconds += session.eval_seconds
         figures: dict[str, Any] = {
             "algo": c.algo,
             "fitness_measure": c.fitness,
@@ -93,7 +101,7 @@ class EvolutionCurriculumRun(CurriculumRun):
             "policy_steps_per_second": round(steps / max(seconds, 1e-9)),
         }
         if self.final is not None:
-            final = load_learner(self._branch_folder(self.final) / "agent")
+            final = load_learner(self._final_folder() / "agent")
             figures["lineage_generations"] = final.generations
             champion = final.champion
             figures["champion_fitness"] = None if champion is None else champion.fitness

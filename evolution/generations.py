@@ -7,7 +7,9 @@ with a progress bar, a ``progress.csv`` row per generation and a checkpoint
 every ``checkpoint_seconds`` of run time and after the last generation. The
 direct regime (:class:`evolution.run.EvolutionRun`) and the coevolution
 regime (:class:`evolution.coevolution.EvolutionCoevolutionRun`) supply the
-generation, the checkpoint and the champion.
+generation and the checkpoint; each generation updates the state's
+:class:`ChosenAgent`, the agent the run hands over as its rule picks it
+(written at the end as ``agent.npz``).
 """
 
 from __future__ import annotations
@@ -15,20 +17,47 @@ from __future__ import annotations
 import os
 import time
 from abc import abstractmethod
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from amaze.runs.lifecycle import Run
+from amaze.runs.progress import Progress
+from evolution.agent_file import policy_from_agent_arrays, save_agent
 from evolution.config import EvolveConfig
 
-__all__ = ["GenerationLoop"]
+__all__ = ["ChosenAgent", "GenerationLoop"]
+
+
+@dataclass
+class ChosenAgent:
+    """The agent a run hands over, as its rule has picked it so far (part of the state)."""
+
+    arrays: dict[str, np.ndarray]
+    architecture: dict[str, Any]
+    #: The generation it was found in (1: the initial population, before any update).
+    generation: int
+    #: The run's env steps at the end of that generation.
+    steps: int
+    #: What the rule ranks agents by (higher is better; ties keep the earlier one).
+    score: tuple[float, ...] = ()
+    #: Figures for the agent file's metadata (its fitness...).
+    extra: dict[str, Any] = field(default_factory=dict)
 
 
 class GenerationLoop(Run):
     """Generations until a budget is spent; subclasses play one generation and save state.
 
     ``self.state`` must have ``algorithm`` (with ``stopped``), ``generation``,
-    ``steps``, ``seconds`` and ``eval_seconds``.
+    ``steps``, ``seconds``, ``eval_seconds`` and ``agent`` (a :class:`ChosenAgent`
+    or ``None`` before the first generation).
     """
+
+    agent_file = "agent.npz"
+    #: The rule that picks the agent (:meth:`agent_figures`), when the config has none.
+    regime_agent_rule = ""
 
     config_class = EvolveConfig
     position_field = "generation"
@@ -43,10 +72,6 @@ class GenerationLoop(Run):
     @abstractmethod
     def generation(self) -> dict[str, Any]:
         """Play and breed one generation; return its ``progress.csv`` row."""
-
-    @abstractmethod
-    def save_champion(self) -> None:
-        """Write ``champion.npz`` from the state."""
 
     @abstractmethod
     def save_checkpoint(self) -> None:
@@ -71,28 +96,17 @@ class GenerationLoop(Run):
                 f" least {steps} steps"
             )
 
-    def train(self, progress_bar: bool) -> None:
-        """Generations until a budget is spent, with a progress bar (ETA from the budget)."""
-        from tqdm import tqdm
-
+    def train(self, progress: str) -> None:
+        """Generations until a budget is spent, showing ``progress`` (ETA from the budget)."""
         c = self.config
-        if self.state.generation and not (self.out / "champion.npz").exists():
-            self.save_champion()  # a champion lost after the checkpoint is written again
         if c.budget_steps is not None:
             total, unit = c.budget_steps, "steps"
         elif c.budget_seconds is not None:
             total, unit = c.budget_seconds, "s"
         else:
-            total, unit = c.max_generations, "gen"
-        with tqdm(
-            total=total,
-            initial=self._done(),
-            unit=unit,
-            unit_scale=True,
-            disable=not progress_bar,
-            desc=f"{c.algo} seed {c.seed}",
-            dynamic_ncols=True,
-        ) as bar:
+            total, unit = c.max_generations, "generations"
+        desc = f"{c.algo} {c.regime} seed {c.seed}"
+        with Progress(total, unit, desc, mode=progress, initial=self._done()) as shown:
             last_checkpoint: float | None = None
             while self.budget_left():
                 row = self.generation()
@@ -106,15 +120,59 @@ class GenerationLoop(Run):
                     last_checkpoint = self.state.seconds
                 self.state.seconds += time.perf_counter() - logging_started
                 rate = self.state.steps / max(self.state.eval_seconds, 1e-9)
-                bar.set_postfix(
-                    gen=row["generation"],
+                shown.update(
+                    self._done(),
+                    generation=row["generation"],
                     best=f"{row['best']:.3f}",
-                    mean=f"{row['mean']:.3f}",
                     champion=f"{row['champion']:.3f}",
                     steps_s=f"{rate / 1e6:.2f}M",
-                    refresh=False,
                 )
-                bar.update(self._done() - bar.n)
+
+    def final_agent(self) -> Any:
+        agent = self.state.agent
+        if agent is None:
+            raise self.config.error("the run evaluated no generation")
+        where = f"the {self.config.algo} agent"
+        metadata = {"architecture": agent.architecture, "robot": self.config.robot}
+        return policy_from_agent_arrays(agent.arrays, metadata, where=where)
+
+    def save_agent(self, agent: Any, path: Path) -> None:
+        c, chosen = self.config, self.state.agent
+        metadata = {
+            "architecture": chosen.architecture,
+            "robot": c.robot,
+            "algorithm": c.algo,
+            "fitness_measure": c.fitness,
+            "generation": chosen.generation,
+            "seed": c.seed,
+            **chosen.extra,
+        }
+        save_agent(path, chosen.arrays, metadata)
+
+    def agent_figures(self) -> dict[str, Any]:
+        chosen = self.state.agent
+        return {
+            "agent_rule": self.config.agent_rule or self.regime_agent_rule,
+            "agent_steps": chosen.steps,
+            "agent_generation": chosen.generation,
+            "agent_untrained": chosen.generation == 1,
+        }
+
+    def stop_reason(self) -> str:
+        c, s = self.config, self.state
+        if s.algorithm.stopped:
+            reasons = ", ".join(sorted(getattr(s.algorithm, "stop_reasons", {}))) or "its criteria"
+            return f"the {c.algo} search stopped, with no restart left ({reasons})"
+        if c.max_generations is not None and s.generation >= c.max_generations:
+            return f"max_generations {c.max_generations} reached"
+        if c.budget_steps is not None:
+            least, what = self.generation_steps()
+            if c.budget_steps - s.steps < least:
+                return (
+                    f"the {c.budget_steps - s.steps:,} steps left cannot pay another generation"
+                    f" ({what} spend at least {least:,})"
+                )
+        return ""
 
     def budget_left(self) -> bool:
         """Whether another generation starts: every budget has room, the algorithm goes on."""

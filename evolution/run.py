@@ -80,13 +80,12 @@ from amaze.runs.config import RunConfig
 from amaze.runs.folder import ProgressLog
 from amaze.runs.lifecycle import Run, RunResult
 from evolution import EvolutionConfigError
-from evolution.agent_file import load_agent, save_agent
 from evolution.algorithms import SearchAlgorithm, make_algorithm
 from evolution.backends import current_backend
 from evolution.checkpoint import evolution_codec
 from evolution.config import EvolveConfig
-from evolution.generations import GenerationLoop
-from evolution.population import EvaluationBackend, fewest_steps
+from evolution.generations import ChosenAgent, GenerationLoop
+from evolution.population import EvaluationBackend, PopulationResult, fewest_steps
 
 __all__ = ["EvolutionRun", "EvolveConfig", "evolve", "resume"]
 
@@ -107,13 +106,17 @@ class _State:
     version: int = CHECKPOINT_VERSION
     #: The SHA-256 of the run's ``config.json`` (:attr:`~amaze.runs.lifecycle.Run.config_digest`).
     config_sha256: str | None = None
+    #: The agent the run hands over, as ``agent_rule`` has picked it so far.
+    agent: ChosenAgent | None = None
+    #: Env steps of the evaluations on ``eval_mazes`` (``best-eval``), not part of the budget.
+    evaluation_steps: int = 0
 
 
 class EvolutionRun(GenerationLoop):
     """The evolution trainer: generations of ask, evaluate, tell until a budget is spent."""
 
     progress_fields = PROGRESS_FIELDS
-    outputs = ("champion.npz", "summary.json", "progress.csv", "fitness.png")
+    outputs = ("agent.npz", "summary.json", "progress.csv", "fitness.png")
     state: _State
 
     def __init__(self, out: str | os.PathLike, config: EvolveConfig) -> None:
@@ -170,20 +173,12 @@ class EvolutionRun(GenerationLoop):
                 f" not {CHECKPOINT_VERSION}"
             )
         self.check_config_digest(state.config_sha256, f"checkpoint {str(self.checkpoint)!r}")
-        champion_file = self.out / "champion.npz"
-        if champion_file.exists() or champion_file.is_symlink():
-            load_agent(champion_file)  # a damaged champion is refused here, by name
         self.state = state
         self.backend  # noqa: B018
         champion = state.algorithm.champion
         if champion is not None:
             self.champion_fitness = float(champion[1])
         return state.generation
-
-    def final_agent(self) -> Any:
-        if not (self.out / "champion.npz").exists():
-            raise EvolutionConfigError("the run evaluated no generation (budget too small?)")
-        return load_agent(self.out / "champion.npz")
 
     def figures(self) -> dict[str, Any]:
         c, s = self.config, self.state
@@ -201,10 +196,12 @@ class EvolutionRun(GenerationLoop):
             "policy_steps_per_second": round(s.steps / max(s.eval_seconds, 1e-9)),
             "budget_steps": c.budget_steps,
             "budget_seconds": c.budget_seconds,
+            "eval_mazes": list(c.eval_mazes or []),
+            "evaluation_steps": s.evaluation_steps,
         }
 
     def trajectory_mazes(self) -> list[tuple[str, str]]:
-        """The champion in the 4 rotations of the first training maze."""
+        """The agent in the 4 rotations of the first training maze."""
         mazes = rotations(self.config.mazes[0])
         return [(f"training-rotation-{index}", maze) for index, maze in enumerate(mazes)]
 
@@ -232,11 +229,11 @@ class EvolutionRun(GenerationLoop):
         s.generation += 1
         s.steps += result.env_steps
         s.eval_seconds += result.seconds
-        s.seconds += time.perf_counter() - started
         champion = algorithm.champion
         if champion is not None and champion[1] > self.champion_fitness:
             self.champion_fitness = float(champion[1])
-            self.save_champion()
+        self.choose_agent(candidates, result)
+        s.seconds += time.perf_counter() - started
         return {
             "generation": s.generation,
             "steps": s.steps,
@@ -247,22 +244,48 @@ class EvolutionRun(GenerationLoop):
             "eval_seconds": round(result.seconds, 4),
         }
 
-    def save_champion(self) -> None:
-        arrays, architecture = self.state.algorithm.champion_arrays()
-        save_agent(
-            self.out / "champion.npz",
-            arrays,
-            {
-                "architecture": architecture,
-                "robot": self.config.robot,
-                "mazes": list(self.config.mazes),
-                "fitness": self.champion_fitness,
-                "fitness_measure": self.config.fitness,
-                "algorithm": self.config.algo,
-                "generation": self.state.generation,
-                "seed": self.config.seed,
-            },
+    def choose_agent(self, candidates: list[Any], result: PopulationResult) -> None:
+        """The generation's part in choosing the agent, by ``agent_rule``.
+
+        ``best-fitness``: the algorithm's champion when it improves; ``final``:
+        every generation's best; ``best-eval``: the generation's best played on
+        the evaluation mazes, kept when it beats the one kept (success rate,
+        then R̄; the earlier on ties).
+        """
+        c, s = self.config, self.state
+        algorithm = s.algorithm
+        if c.agent_rule == "best-fitness":
+            if s.agent is not None and s.agent.score[0] >= self.champion_fitness:
+                return
+            arrays, architecture = algorithm.champion_arrays()
+            score: tuple[float, ...] = (self.champion_fitness,)
+        else:
+            best = candidates[result.best]
+            arrays, architecture = algorithm.candidate_arrays(best)
+            score = (float(result.fitness[result.best]),)
+            if c.agent_rule == "best-eval":
+                played = self.evaluation.evaluate(algorithm.population_policy([best]))
+                s.evaluation_steps += played.env_steps
+                score = (float(played.success_rate[0]), float(played.paper_reward[0]))
+                if s.agent is not None and s.agent.score >= score:
+                    return
+        extra = {"mazes": list(c.mazes), "fitness": float(result.fitness[result.best])}
+        if c.agent_rule == "best-fitness":
+            extra["fitness"] = self.champion_fitness
+        s.agent = ChosenAgent(
+            {k: np.array(v) for k, v in arrays.items()},
+            dict(architecture),
+            s.generation,
+            s.steps,
+            score,
+            extra,
         )
+
+    @cached_property
+    def evaluation(self) -> EvaluationBackend:
+        """The evaluation mazes in their rotations (``agent_rule`` ``best-eval``)."""
+        c = self.config
+        return current_backend().evaluator(c.eval_mazes, c.robot, fitness=c.fitness, rotations=True)
 
     def save_checkpoint(self) -> None:
         self.state.config_sha256 = self.config_digest
@@ -294,12 +317,12 @@ def plot_progress(csv_path: Path, png_path: Path, config: EvolveConfig) -> None:
 
 
 def evolve(
-    config: EvolveConfig | Mapping[str, Any], out: str | os.PathLike, *, progress_bar: bool = False
+    config: EvolveConfig | Mapping[str, Any], out: str | os.PathLike, *, progress: str = "off"
 ) -> RunResult:
     """Run a fresh evolution as ``config`` says and write the run folder ``out``."""
-    return EvolutionRun.fresh(config, out, progress_bar=progress_bar)
+    return EvolutionRun.fresh(config, out, progress=progress)
 
 
-def resume(out: str | os.PathLike, *, progress_bar: bool = False) -> RunResult:
+def resume(out: str | os.PathLike, *, progress: str = "off") -> RunResult:
     """Continue the run in ``out`` from its latest checkpoint (same config, same seed)."""
-    return EvolutionRun.resume(out, progress_bar=progress_bar)
+    return EvolutionRun.resume(out, progress=progress)

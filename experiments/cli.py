@@ -20,13 +20,12 @@ each run's file it cannot (:mod:`experiments.report`).
 
 from __future__ import annotations
 
-import signal
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
 from amaze.runs.cluster import add_backend_arguments, check_backend
-from amaze.runs.command import CommandParser, run_command
+from amaze.runs.command import CommandParser, run_command, terminated_as_interrupt
 from experiments.report import write_report
 from experiments.runner import format_status, run_study, study_status
 from experiments.study import load_study, study_names
@@ -80,27 +79,34 @@ def _run(argv: Sequence[str]) -> int:
         return 0
     check_backend(args.backend, args.address)
     study = load_study(args.study)
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    if args.progress is None:
+        progress = "bar" if sys.stderr.isatty() else "lines"
+    else:
+        progress = "bar" if args.progress else "off"
     # `kill PID` stops the study as Ctrl-C does (a background job ignores Ctrl-C's SIGINT)
-    signal.signal(signal.SIGTERM, _interrupt)
-    status = run_study(
-        study,
-        args.out,
-        workers=args.workers,
-        progress_bar=progress,
-        backend=args.backend,
-        address=args.address,
-    )
+    with terminated_as_interrupt():
+        try:
+            status = run_study(
+                study,
+                args.out,
+                workers=args.workers,
+                progress=progress,
+                backend=args.backend,
+                address=args.address,
+            )
+        except KeyboardInterrupt:
+            print(
+                f"interrupted: finished runs are kept, the others resume from their last"
+                f" checkpoint; go on with: amaze-experiment run {args.study} --out {args.out}",
+                file=sys.stderr,
+            )
+            raise
     print(format_status(*study_status(args.out)))
     return status
 
 
 def _warn(message: str) -> None:
     print(f"warning: {message}", file=sys.stderr)
-
-
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
 
 
 def main(argv: Sequence[str] | None = None) -> int:

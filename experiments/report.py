@@ -72,6 +72,8 @@ RUN_COLUMNS = (
     "seed",
     "env_steps",
     "seconds",
+    "budget_spent",
+    "stopped_early",
     "wall_seconds",
     "threads",
     "core_seconds",
@@ -115,6 +117,30 @@ def read_summary(path: Path) -> dict[str, Any]:
     return summary
 
 
+#: Treatments whose median budget spent differs from the rest of their condition by more
+#: than this (a share of the budget) are flagged: their comparison is not at equal budget.
+BUDGET_TOLERANCE = 0.10
+
+
+def budget_spent(run: PlannedRun, summary: dict[str, Any]) -> float:
+    """The share of its budget a run spent: the most of any budget it was given.
+
+    ``summary.json``'s ``budget_spent`` where it has one; else from its env
+    steps and seconds against the run's budgets (summaries written before).
+    """
+    recorded = summary.get("budget_spent")
+    if isinstance(recorded, dict):
+        shares = [_number(v) for v in recorded.values()]
+        shares = [share for share in shares if not math.isnan(share)]
+        if shares:
+            return max(shares)
+    shares = []
+    for budget, used in ((run.budget_steps, "env_steps"), (run.budget_seconds, "seconds")):
+        if budget:
+            shares.append(_number(summary.get(used)) / float(budget))
+    return max(shares) if shares else math.nan
+
+
 def collect_rows(
     folder: StudyFolder, study: Study, left_out: list[LeftOut] | None = None
 ) -> list[dict[str, Any]]:
@@ -150,6 +176,8 @@ def collect_rows(
                 "seed": run.seed,
                 "env_steps": int(summary["env_steps"]),
                 "seconds": _number(summary.get("seconds")),
+                "budget_spent": budget_spent(run, summary),
+                "stopped_early": summary.get("stopped_early") or "",
                 "wall_seconds": wall,
                 "threads": threads if isinstance(threads, int) else "",
                 "core_seconds": wall * threads if isinstance(threads, int) else math.nan,
@@ -376,6 +404,29 @@ def _p(p: float | None) -> str:
     return "n/a" if p is None else f"{p:.2g}"
 
 
+def _budget_table(rows: Sequence[dict[str, Any]], study: Study) -> str:
+    """Median budget spent per treatment and condition, flagged where it is not like the rest."""
+    lines = ["| condition | treatment | runs | budget spent (median) | |", "|---|---|---|---|---|"]
+    for condition in dict.fromkeys(r.condition for r in study.runs):
+        medians = {}
+        for treatment in study.treatments:
+            spent = [
+                r["budget_spent"]
+                for r in rows
+                if r["treatment"] == treatment and r["condition"] == condition
+                and not math.isnan(r["budget_spent"])
+            ]  # fmt: skip
+            if spent:
+                medians[treatment] = (len(spent), float(np.median(spent)))
+        for treatment, (count, median) in medians.items():
+            others = [m for t, (_, m) in medians.items() if t != treatment]
+            flag = ""
+            if others and abs(median - float(np.median(others))) > BUDGET_TOLERANCE:
+                flag = "**flagged**"
+            lines.append(f"| {condition} | {treatment} | {count} | {median:.0%} | {flag} |")
+    return "\n".join(lines)
+
+
 def _compute(rows: Sequence[dict[str, Any]], study: Study) -> str:
     lines = [
         "| treatment | runs | env steps (median) | training s (median) | wall-clock s (sum)"
@@ -478,6 +529,16 @@ def write_report(out: str | Path, warn: Callable[[str], None] | None = None) -> 
     if left_out:
         parts += ["## Left out", "", _left_out(left_out), ""]
     parts += [
+        "## Budget spent",
+        "",
+        "The share of its budget each run spent (the most of any budget it was given), median"
+        f" per treatment; **flagged** where it differs from the other treatments' median under"
+        f" the same condition by more than {BUDGET_TOLERANCE:.0%}: their comparison is not at"
+        " equal budget. Runs record why they stopped early in `summary.json` (`stopped_early`,"
+        " in `runs.csv`).",
+        "",
+        _budget_table(rows, study),
+        "",
         "## Compute",
         "",
         "Env steps and training seconds from `summary.json`; wall-clock seconds of each run's"

@@ -68,6 +68,7 @@ from amaze.runs.config import read_json_object
 from amaze.runs.folder import write_bytes, write_json
 from amaze.runs.launchers import Job, Launcher, ProcessLauncher, run_jobs
 from amaze.runs.lifecycle import CONFIG_FILE, SUMMARY_FILE
+from amaze.runs.progress import Progress
 from amaze.runs.ray_tasks import RayLauncher
 from amaze.validation import check_integer, parse_json
 from experiments.study import PlannedRun, Study, StudyError, parse_study, read_study_text
@@ -422,7 +423,7 @@ def run_study(
     out: str | os.PathLike,
     *,
     workers: int | None = None,
-    progress_bar: bool = True,
+    progress: str = "off",
     python: str = sys.executable,
     backend: str = "local",
     address: str | None = None,
@@ -430,7 +431,9 @@ def run_study(
     """Run every unfinished run of ``study`` in ``out``; 0 when all are finished, else 1.
 
     See the module docstring: ``backend="ray"`` runs each run as a Ray task
-    on the cluster at ``address``. Raises :class:`~amaze.errors.UsageError`
+    on the cluster at ``address``; ``progress`` is shown as
+    :class:`~amaze.runs.progress.Progress` shows it (``bar``, ``lines``, ``off``).
+    Raises :class:`~amaze.errors.UsageError`
     for a folder that holds another study or is being run by another
     process (or a worker of one), and for a cluster that cannot be reached.
     The exit status says what ``status`` says: 1 when a run of the study is
@@ -459,7 +462,7 @@ def run_study(
         state.update({"runner": {**_this_process(), "backend": backend}, "running": []})
         folder.save_state(state)
         try:
-            _run_waiting(study, folder, state, launcher, waiting, workers, progress_bar, python)
+            _run_waiting(study, folder, state, launcher, waiting, workers, progress, python)
         finally:
             state["running"] = []
             state["runner"] = None
@@ -496,23 +499,13 @@ def _run_waiting(
     launcher: Launcher,
     waiting: list[PlannedRun],
     workers: int,
-    progress_bar: bool,
+    progress: str,
     python: str,
 ) -> None:
-    """Run ``waiting``, keeping ``state`` and the progress bar up to date as runs start and end."""
-    from tqdm import tqdm
-
+    """Run ``waiting``, keeping ``state`` and the progress shown up to date as runs end."""
     started_at: dict[str, float] = {}
     done = len(study.runs) - len(waiting)
-    bar = tqdm(
-        total=float(len(study.runs)),
-        initial=float(done),
-        unit="run",
-        desc=study.name,
-        disable=not progress_bar,
-        dynamic_ncols=True,
-        bar_format="{l_bar}{bar}| {n:.1f}/{total:.0f} runs [{elapsed}<{remaining}{postfix}]",
-    )
+    shown = Progress(float(len(study.runs)), "runs", study.name, mode=progress, initial=done)
 
     def prepare(run: PlannedRun) -> Job:
         write_json(folder.config_file(run), run.config)
@@ -542,14 +535,20 @@ def _run_waiting(
             done += 1
         else:
             state["failed"][run.id] = {"status": code, "time": _now()}
-            bar.write(f"{run.id}: failed (exit {code}), see {folder.log_file(run)}")
+            failed = f"{run.id}: failed (exit {code}), see {folder.log_file(run)}"
+            if shown.bar is not None:
+                shown.bar.write(failed)
+            else:
+                print(failed, flush=True)
         state["running"] = list(started_at)
         folder.save_state(state)
 
     def polled(running: list[PlannedRun]) -> None:
-        bar.n = done + sum(folder.fraction(run) for run in running)
-        bar.set_postfix_str(f"{len(running)} running, {len(state['failed'])} failed")
-        bar.refresh()
+        shown.update(
+            done + sum(folder.fraction(run) for run in running),
+            running=len(running),
+            failed=len(state["failed"]),
+        )
 
     def stopped(running: list[PlannedRun]) -> None:  # interrupted: they resume next time
         for run in running:
@@ -567,8 +566,10 @@ def _run_waiting(
             stopped=stopped,
             poll_seconds=POLL_SECONDS,
         )
+        shown.close()
     finally:
-        bar.close()
+        if shown.bar is not None:
+            shown.bar.close()
 
 
 def format_status(study: Study, statuses: Sequence[RunStatus]) -> str:

@@ -15,7 +15,8 @@ same form is a study::
     steps = { steps = 1_000_000 }     # env steps
     clock = { seconds = 600 }         # wall-clock seconds (steps = ... too: whichever first)
 
-    [options.all]                     # config fields of every run, then more specific ones:
+    [options.all]                     # config fields of every run where they act (target:
+                                      #   the curricula's), then more specific ones:
     [options.ppo]                     #   an algorithm's,
     hyperparameters = { n_steps = 512 }
     [options.edhucat-careful]         #   a trainer's,
@@ -41,6 +42,7 @@ before a single run is built (at most :data:`MAX_RUNS`).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import tomllib
 from collections.abc import Callable, Mapping
@@ -355,9 +357,29 @@ def _config(
     config: dict[str, Any] = {"algo": algorithm, "robot": robot, "seed": seed}
     config.update(trainer_fields(trainer))
     config.update(budget)
-    for key in ("all", trainer, algorithm, f"{trainer}/{algorithm}"):
+    shared = _acting(options.get("all", {}), algorithm, config.get("regime", "direct"))
+    config = _merge(config, shared)
+    for key in (trainer, algorithm, f"{trainer}/{algorithm}"):
         config = _merge(config, options.get(key, {}))
     return config
+
+
+def _acting(options: dict[str, Any], algorithm: str, regime: str) -> dict[str, Any]:
+    """The options of ``[options.all]`` that act in ``regime`` for ``algorithm``'s trainer.
+
+    ``all`` is said of every run of a study (``target``: the curricula's and
+    co-evolution's target), so each run takes the options that act in its
+    regime (the fields' ``regimes``); an option set for a trainer, an
+    algorithm or a pair is that run's own, and refused where it has no effect.
+    """
+    fields = {f.name: f for f in dataclasses.fields(run_class(algorithm).config_class)}
+    acting = {}
+    for key, value in options.items():
+        field = fields.get(key)
+        regimes = None if field is None else field.metadata.get("regimes")
+        if regimes is None or regime in regimes:
+            acting[key] = value
+    return acting
 
 
 class _CuratorCheck:

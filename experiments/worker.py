@@ -45,10 +45,11 @@ def _run(argv: Sequence[str]) -> int:
     trainer = run_class(config.get("algo"))
     print(f"--- worker process {os.getpid()} in {out}", flush=True)
     lock_run_folder(out)
+    # its log is a file: progress as a plain line at least every 30 s
     if (out / CONFIG_FILE).exists():
-        result = trainer.resume(out)
+        result = trainer.resume(out, progress="lines")
     else:
-        result = trainer.fresh(config, out)
+        result = trainer.fresh(config, out, progress="lines")
     print(result.headline)
     return 0
 

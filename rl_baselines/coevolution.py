@@ -14,8 +14,9 @@ that evolves beside it, in *rounds*:
    population admits, replays and retires mazes as in the evolution regime;
 4. every ``coevolution.validation_every`` rounds the agent plays the
    validation mazes (16 family mazes, never the suite's seeds); the best
-   there so far is the champion (``champion.zip``), the run's final agent,
-   which ``summary.json`` also reports on 32 unseen family mazes.
+   there so far is the champion (``checkpoints/champion.zip``), the run's
+   agent (``agent.zip`` at the end), which ``summary.json`` also reports on
+   32 unseen family mazes.
 
 The budget is ``budget_steps`` training steps (spent in whole rollouts, as in
 the other regimes: a round starts only if its rollout fits in what is left, a
@@ -30,8 +31,8 @@ validation episodes are reported apart (``scoring_steps``,
 ``checkpoints/model-<round>.zip`` and ``checkpoints/state.npz`` (the maze
 population with its generator, counters and champion, naming the model file;
 the model is written first, the state last, each atomically, so a kill
-between the two leaves the previous pair); ``champion.zip`` +
-``champion.json``; ``mazes.csv``; ``population.png``; ``summary.json``;
+between the two leaves the previous pair) and ``champion.zip`` + ``.json``;
+``agent.zip`` + ``agent.json``; ``mazes.csv``; ``population.png``; ``summary.json``;
 ``trajectories/``; ``tensorboard/`` (SB3's losses and returns, and
 ``coevolution/validation_success``, ``coevolution/population_difficulty``...).
 A resumed run continues from the last checkpoint with the population as it
@@ -72,6 +73,7 @@ from amaze.runs.checkpoint import (
 )
 from amaze.runs.folder import write_bytes
 from amaze.runs.lifecycle import Run
+from amaze.runs.progress import Progress
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, load_sb3_model
 from rl_baselines.config import TrainConfig, check_rollout_fits
@@ -100,6 +102,8 @@ class _State:
     champion_fitness: float = -np.inf
     champion_success: float = 0.0
     champion_round: int = 0
+    #: Training steps when the champion was found.
+    champion_steps: int = 0
     model_file: str = ""
     version: int = CHECKPOINT_VERSION
     #: The SHA-256 of the run's ``config.json`` (:attr:`~amaze.runs.lifecycle.Run.config_digest`).
@@ -123,8 +127,9 @@ class SB3CoevolutionRun(Run):
     progress_fields = PROGRESS_FIELDS
     position_field = "round"
     checkpoint_files = ("state.npz",)
+    agent_file = "agent.zip"
     outputs: ClassVar[tuple[str, ...]] = (
-        "champion.zip", "summary.json", "progress.csv", "mazes.csv", "population.png",
+        "agent.zip", "summary.json", "progress.csv", "mazes.csv", "population.png",
         "tensorboard/",
     )  # fmt: skip
     config: TrainConfig
@@ -207,12 +212,14 @@ class SB3CoevolutionRun(Run):
             tensorboard_log=self._tensorboard_dir(),
         )
         self.model.num_timesteps = state.steps
+        if self.champion_file.exists() or self.champion_file.is_symlink():
+            SB3Agent.load(self.champion_file)  # a damaged champion is refused here, by name
         self.state = state
         self.seconds_before = state.seconds
         self.started = time.monotonic()
         return state.round
 
-    def train(self, progress_bar: bool) -> None:
+    def train(self, progress: str) -> None:
         """Rounds until a budget is spent (at least one), checkpointing every ``eval_every`` steps.
 
         The budget is looked at once after each round, so the round that
@@ -221,19 +228,49 @@ class SB3CoevolutionRun(Run):
         c, s = self.config, self.state
         last_checkpoint = s.steps
         spent = s.round > 0 and self.budget_spent()
-        while not spent:
-            row = self.round()
-            self.progress.append(row)
-            spent = self.budget_spent()
-            # after the first round too: a run killed later always has a checkpoint
-            if s.round == 1 or s.steps - last_checkpoint >= c.eval_every or spent:
-                self.save_checkpoint()
-                last_checkpoint = s.steps
-        if s.round == 0 or not (self.out / "champion.zip").exists():
-            raise RLConfigError("the run played no round (budget too small?)")
+        total, unit = (c.budget_steps, "steps") if c.budget_steps else (c.budget_seconds, "s")
+        desc = f"{c.algo} coevolution seed {c.seed}"
+        with Progress(total, unit, desc, mode=progress) as shown:
+            while not spent:
+                row = self.round()
+                self.progress.append(row)
+                spent = self.budget_spent()
+                # after the first round too: a run killed later always has a checkpoint
+                if s.round == 1 or s.steps - last_checkpoint >= c.eval_every or spent:
+                    self.save_checkpoint()
+                    last_checkpoint = s.steps
+                done = s.steps if c.budget_steps else self.seconds()
+                shown.update(done, round=s.round, champion_success=f"{s.champion_success:.2f}")
+        if s.round == 0 or not self.champion_file.exists():
+            raise RLConfigError("the run played no round")
+
+    @property
+    def champion_file(self) -> Path:
+        """The best agent on the validation mazes so far (at the top in older run folders)."""
+        legacy = self.out / "champion.zip"
+        return legacy if legacy.exists() else self.checkpoints / "champion.zip"
 
     def final_agent(self) -> SB3Agent:
-        return SB3Agent.load(self.out / "champion.zip")
+        return SB3Agent.load(self.champion_file)
+
+    def save_agent(self, agent: SB3Agent, path: Path) -> None:
+        agent.save(path)
+
+    def agent_figures(self) -> dict[str, Any]:
+        s = self.state
+        return {
+            "agent_rule": "best-validation",
+            "agent_steps": s.champion_steps,
+            "agent_round": s.champion_round,
+            "agent_untrained": False,  # validated after its round's rollout was learnt
+        }
+
+    def stop_reason(self) -> str:
+        c, s = self.config, self.state
+        if c.budget_steps is not None and c.budget_steps - s.steps < self.rollout:
+            left = c.budget_steps - s.steps
+            return f"the {left:,} steps left cannot pay another round's rollout ({self.rollout:,})"
+        return ""
 
     def figures(self) -> dict[str, Any]:
         c, s = self.config, self.state
@@ -302,8 +339,8 @@ class SB3CoevolutionRun(Run):
             validation_success = float(checked.success.mean())
             if validation > s.champion_fitness:
                 s.champion_fitness, s.champion_success = validation, validation_success
-                s.champion_round = s.round
-                agent.save(self.out / "champion.zip")
+                s.champion_round, s.champion_steps = s.round, s.steps
+                agent.save(self.champion_file)
         members, difficulty = len(s.mazes.members), s.mazes.mean_difficulty()
         logger = model.logger
         for key, value in (

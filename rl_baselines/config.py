@@ -29,19 +29,27 @@ the machine's speed, so it neither replays nor resumes bit-identically.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import math
 from dataclasses import dataclass
 from typing import Any
 
 from amaze.curriculum.regimes import REGIMES, branch_allowance
+from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
 from amaze.runs.config import option
 from amaze.runs.curriculum import CurriculumConfig
 from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
 from rl_baselines.agent import algorithm_class
 
-__all__ = ["MIN_N_STEPS", "TrainConfig", "check_rollout_fits", "fitted_hyperparameters"]
+__all__ = [
+    "MIN_N_STEPS",
+    "TrainConfig",
+    "check_rollout_fits",
+    "fitted_hyperparameters",
+    "used_hyperparameters",
+]
 
 #: The fewest steps per environment a fitted rollout has.
 MIN_N_STEPS = 8
@@ -62,6 +70,7 @@ class TrainConfig(CurriculumConfig):
     supported_regimes = REGIMES  # coevolution included (rl_baselines.coevolution)
     #: An open-ended curriculum's epoch: the paper's 100 k steps a branch at 3 M steps, K = 3.
     default_epochs = 10
+    default_eval_mazes = (PAPER_EVALUATION_MAZE,)
 
     algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
     budget_steps: int | None = option(
@@ -94,11 +103,17 @@ class TrainConfig(CurriculumConfig):
             raise RLConfigError(f"tensorboard {self.tensorboard!r} is not true or false")
         if self.n_envs % 4:
             raise RLConfigError(f"n_envs {self.n_envs} is not a multiple of 4 (one per rotation)")
+        if self.regime == "direct" and not self.eval_mazes:
+            raise RLConfigError(
+                "eval_mazes is empty: a direct RL run evaluates, checkpoints and logs its"
+                " progress at its evaluations"
+            )
         if not isinstance(self.hyperparameters, dict):
             raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
         check_hyperparameters(self.algo, self.hyperparameters)
         if self.regime == "coevolution":
             self._coevolution_batch()
+        self.hyperparameters = used_hyperparameters(self)
         return self
 
     def _check_budget(self) -> None:
@@ -121,6 +136,49 @@ class TrainConfig(CurriculumConfig):
                 f" {self.budget_seconds!r}: a run needs at least one budget"
             )
 
+    @classmethod
+    def adapt_config_file(cls, loaded: dict[str, Any]) -> dict[str, Any]:
+        """An rl-zoo3 hyperparameter file (``AMaze-v0: {n_timesteps: ..., ...}``) as a config.
+
+        A file whose one key is not a config key (an environment id) holding a
+        mapping is read as rl-zoo3 writes them: ``n_timesteps`` is
+        ``budget_steps``, ``n_envs`` is ``n_envs``, ``policy`` must be the one
+        the robot uses (``MlpPolicy``; ``CnnPolicy`` for image robots) and is
+        dropped, the rest are SB3 hyperparameters. rl-zoo3's entries that name
+        code (``env_wrapper``, ``callback``, ``frame_stack``...) and Python
+        strings it evaluates (``policy_kwargs: "dict(...)"``) are refused:
+        give the values themselves.
+        """
+        names = {f.name for f in dataclasses.fields(cls)}
+        if len(loaded) != 1:
+            return loaded
+        ((key, table),) = loaded.items()
+        if key in names or not isinstance(table, dict):
+            return loaded
+        table = dict(table)
+        config: dict[str, Any] = {}
+        if "n_timesteps" in table:
+            steps = table.pop("n_timesteps")
+            number = isinstance(steps, int | float) and not isinstance(steps, bool)
+            config["budget_steps"] = int(steps) if number and float(steps).is_integer() else steps
+        if "n_envs" in table:
+            config["n_envs"] = table.pop("n_envs")
+        policy = table.pop("policy", None)
+        if policy not in (None, "MlpPolicy", "CnnPolicy"):
+            raise RLConfigError(f"rl-zoo3 policy {policy!r}: the trainer uses MlpPolicy/CnnPolicy")
+        for name in _ZOO_CODE:
+            if name in table:
+                raise RLConfigError(
+                    f"rl-zoo3 entry {name!r} of {key!r} names code, which a config cannot run"
+                )
+        for name, value in table.items():
+            if isinstance(value, str) and name not in ("device",):
+                raise RLConfigError(
+                    f"rl-zoo3 hyperparameter {name!r} is the string {value!r}: rl-zoo3 evaluates"
+                    " such strings as Python; give the value itself"
+                )
+        return {**config, "hyperparameters": table}
+
     def _coevolution_batch(self) -> None:
         """One environment per rotation of each batch maze: ``batch`` is ``n_envs / 4``."""
         batch = self.coevolution.get("batch", self.n_envs // 4)
@@ -134,6 +192,11 @@ class TrainConfig(CurriculumConfig):
             self.coevolution["capacity"] = batch
 
 
+#: rl-zoo3 entries that name code (wrappers, callbacks): never taken from a file.
+_ZOO_CODE = (
+    "env_wrapper", "callback", "frame_stack", "normalize", "vec_env_wrapper", "env_kwargs",
+    "eval_env_kwargs", "normalize_kwargs",
+)  # fmt: skip
 #: Hyperparameters the trainer sets itself.
 _RESERVED = frozenset(
     {"policy", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
@@ -177,6 +240,28 @@ def check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:
                 check_number(what, value, error=RLConfigError)
         elif default is None and value is not None and not isinstance(value, dict):
             raise RLConfigError(f"{what} {value!r} is not a JSON object")
+
+
+def used_hyperparameters(config: TrainConfig) -> dict[str, Any]:
+    """Every SB3 hyperparameter the run uses: SB3's defaults, the config's, a curriculum's fit.
+
+    What ``config.json`` records, as rl-zoo3 does, so that a run says what ran
+    (and a later SB3 with other defaults cannot change it). The ones the
+    trainer sets itself (seed, device, the policy class...) are left out;
+    a hybrid robot's CNN is added to ``policy_kwargs`` when the model is built.
+    Filling them in twice gives the same: a curriculum's fitted rollout,
+    recorded, is then the config's own.
+    """
+    skipped = {"self", "policy", "env", *_RESERVED}
+    used = {
+        name: value
+        for name, value in sb3_defaults(config.algo).items()
+        if name not in skipped and not name.endswith("_class")
+    }
+    used.update(config.hyperparameters)
+    if config.is_curriculum:
+        used.update(fitted_hyperparameters(config))
+    return used
 
 
 def check_rollout_fits(config: TrainConfig, rollout: int, unit: str) -> None:

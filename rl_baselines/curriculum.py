@@ -30,6 +30,7 @@ import torch
 from amaze.curriculum.learner import branch_seed
 from amaze.curriculum.regimes import MAX_OPEN_STAGES
 from amaze.runs.curriculum import CurriculumRun
+from rl_baselines.agent import SB3Agent
 from rl_baselines.config import TrainConfig, fitted_hyperparameters
 from rl_baselines.learner import SB3Learner, load_sb3_learner, new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
@@ -41,7 +42,8 @@ class SB3CurriculumRun(CurriculumRun):
     """The curriculum loop of the RL trainer (see the module docstring)."""
 
     config_class = TrainConfig
-    outputs: ClassVar[tuple[str, ...]] = (*CurriculumRun.outputs, "tensorboard/")
+    agent_file = "agent.zip"
+    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", *CurriculumRun.outputs, "tensorboard/")
     config: TrainConfig
 
     def __init__(self, out: Any, config: TrainConfig) -> None:
@@ -93,6 +95,9 @@ class SB3CurriculumRun(CurriculumRun):
         """One rollout: ``n_steps x n_envs`` env steps."""
         n_steps, n_envs = int(self.hyperparameters["n_steps"]), self.config.n_envs
         return n_steps * n_envs, f"one rollout (n_steps {n_steps} x n_envs {n_envs})"
+
+    def save_agent(self, agent: SB3Agent, path: Path) -> None:
+        agent.save(path)
 
     def learner_figures(self) -> dict[str, Any]:
         c = self.config

@@ -80,7 +80,7 @@ def new_sb3_model(
         policy = "MlpPolicy"
     else:
         policy = "CnnPolicy"
-        kwargs["policy_kwargs"] = {**small_cnn_kwargs(), **kwargs.get("policy_kwargs", {})}
+        kwargs["policy_kwargs"] = {**small_cnn_kwargs(), **(kwargs.get("policy_kwargs") or {})}
     try:
         return algorithm_class(algo)(policy, env, seed=seed, device="cpu", verbose=0, **kwargs)
     except (TypeError, ValueError, AssertionError) as error:

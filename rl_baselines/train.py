@@ -7,16 +7,22 @@ are handed to :class:`rl_baselines.curriculum.SB3CurriculumRun` (the
 curriculum loop with an SB3 learner) by :meth:`SB3Run.run_class_for`, so
 :func:`train`, :func:`resume` and ``amaze-train`` take every regime.
 
-The **direct** regime (paper §4): the agent trains on
-:data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE` in its 4 rotations (environment ``k``
-plays rotation ``k % 4``; ``n_envs`` is a multiple of 4) and is evaluated every
-``eval_every`` env steps on :data:`~amaze.evaluation.suite.PAPER_EVALUATION_MAZE`'s 4
-rotations. Training stops when the budget is spent (``budget_steps`` env steps
-and/or ``budget_seconds`` seconds, whichever comes first) or when all 4
-evaluation episodes are optimal (paper reward R̄ = 1).
+The **direct** regime (paper §4): the agent trains on ``mazes`` (default:
+:data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE`) in their 4 rotations
+(``n_envs`` is a multiple of 4; each environment cycles through the mazes'
+rotations, episode after episode) and is evaluated every ``eval_every`` env
+steps on the 4 rotations of each of ``eval_mazes`` (default:
+:data:`~amaze.evaluation.suite.PAPER_EVALUATION_MAZE`). Training stops when
+the budget is spent (``budget_steps`` env steps and/or ``budget_seconds``
+seconds, whichever comes first) or when every evaluation episode is optimal
+(paper reward R̄ = 1): the paper's protocol. The agent handed over is chosen
+by ``agent_rule``: ``final`` (default: the model when training stopped) or
+``best-eval`` (the best evaluated model, by success rate then R̄ on the
+evaluation mazes, the earliest on ties); ``summary.json`` says which, and at
+how many steps it was found.
 
-A steps budget is spent in whole rollouts (``n_steps x n_envs``), so the run
-may end up to one rollout past it. A seconds budget is the run's training
+A steps budget is spent in whole rollouts (``n_steps x n_envs``), never past
+it: a rollout the steps left cannot pay is not started. A seconds budget is the run's training
 time over every resumed part (:meth:`SB3Run.seconds`: model building,
 rollouts, SB3's updates, evaluations and checkpoints); learning stops at the
 first env step that finds it spent, and the rollout then in progress is not
@@ -31,11 +37,12 @@ Run folder (``out``):
 * ``progress.csv``: one row per evaluation: ``steps, seconds, eval_success, eval_rbar``;
 * ``checkpoints/model.zip`` + ``checkpoints/state.json``: the latest model and the
   step counter, time spent and evaluation state, each written atomically;
-* ``champion.zip`` + ``champion.json``: the best agent on the evaluation mazes;
-* ``summary.json``: the final agent on the standard evaluation suite
+* ``checkpoints/champion.zip`` + ``.json``: the best agent on the evaluation mazes so far;
+* ``agent.zip`` + ``agent.json``: the agent the run hands over (``agent_rule``);
+* ``summary.json``: that agent on the standard evaluation suite
   (``success_rate``, ``normalized_reward``, ``input_recognition``...) and the
   budget spent (``env_steps``, ``seconds``);
-* ``trajectories/``: PNGs of the final agent in the 4 evaluation rotations;
+* ``trajectories/``: PNGs of the agent in the 4 rotations of the first evaluation maze;
 * ``tensorboard/``: SB3's TensorBoard logs (losses, episode returns) and the
   evaluations (``eval/success_rate``, ``eval/rbar``), in ``direct_0``;
   ``tensorboard --logdir OUT/tensorboard``.
@@ -54,6 +61,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import torch
@@ -61,11 +69,11 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.evaluation.protocol import Evaluator
-from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE
 from amaze.maze import rotations
 from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import write_json
 from amaze.runs.lifecycle import Run, RunResult
+from amaze.runs.progress import Progress
 from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, load_sb3_model
@@ -104,6 +112,8 @@ def _checked_state(state: dict[str, Any]) -> dict[str, Any]:
         "best": best,
         "converged": state["converged"],
         "last_eval_steps": integer("last_eval_steps", -1),
+        # absent in run folders written before agent rules: the evaluation at step 0 is unknown
+        "best_steps": integer("best_steps", 0) if "best_steps" in state else 0,
     }
 
 
@@ -112,13 +122,13 @@ class _EvaluationCallback(BaseCallback):
 
     Stops training (at the next step) once every evaluation episode is
     optimal, and at the first step that finds the seconds budget spent.
-    ``bar``, when given, shows the seconds spent (a run without a step limit).
+    ``shown``, when given, shows the run's progress at every rollout start.
     """
 
-    def __init__(self, run: SB3Run, bar: Any = None) -> None:
+    def __init__(self, run: SB3Run, shown: Progress | None = None) -> None:
         super().__init__(verbose=0)
         self.run = run
-        self.bar = bar
+        self.shown = shown
         self.evaluator: Evaluator | None = None
 
     def evaluate_now(self) -> None:
@@ -131,8 +141,8 @@ class _EvaluationCallback(BaseCallback):
         summary = report.summary()
         score = (float(summary["success_rate"]), float(summary["normalized_reward"]))
         if run.best is None or score > run.best:
-            run.best = score
-            agent.save(run.out / "champion.zip")
+            run.best, run.best_steps = score, steps
+            agent.save(run.champion_file)
         run.converged = all(e.paper_reward >= OPTIMAL for e in report.episodes)
         run.last_eval_steps = steps
         self.logger.record("eval/success_rate", score[0])
@@ -148,13 +158,17 @@ class _EvaluationCallback(BaseCallback):
         )
         run.save_checkpoint()
 
-    def show_seconds(self) -> None:
-        """Move the seconds bar, if any, to the run's seconds."""
-        if self.bar is not None:
-            self.bar.update(min(self.run.seconds(), self.bar.total) - self.bar.n)
+    def show(self) -> None:
+        """Show the run's progress: its steps (a steps budget) or its seconds."""
+        if self.shown is not None:
+            run = self.run
+            steps = int(self.model.num_timesteps)
+            done = steps if run.config.budget_steps is not None else run.seconds()
+            best = "n/a" if run.best is None else f"{run.best[0]:.2f}"
+            self.shown.update(done, steps=f"{steps:,}", best_eval_success=best)
 
     def _on_rollout_start(self) -> None:
-        self.show_seconds()
+        self.show()
         if self.run.out_of_time():
             return  # learning stops at the next step; the final evaluation follows
         steps = int(self.model.num_timesteps)
@@ -176,7 +190,8 @@ class SB3Run(Run):
     progress_fields = PROGRESS_FIELDS
     position_field = "steps"
     checkpoint_files = ("model.zip", "state.json")
-    outputs = ("champion.zip", "summary.json", "progress.csv", "tensorboard/")
+    outputs = ("agent.zip", "summary.json", "progress.csv", "tensorboard/")
+    agent_file = "agent.zip"
     config: TrainConfig
 
     def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
@@ -185,6 +200,8 @@ class SB3Run(Run):
         self.model: BaseAlgorithm | None = None
         self.seconds_before = 0.0
         self.best: tuple[float, float] | None = None
+        #: Env steps at which the best evaluated model was evaluated.
+        self.best_steps = 0
         self.converged = False
         self.last_eval_steps = -1
         self.started = time.monotonic()
@@ -199,9 +216,16 @@ class SB3Run(Run):
         return budget is not None and self.seconds() >= budget
 
     def _env(self) -> SB3VecEnv:
-        """The training environments (one rotation per environment)."""
+        """The training environments: the mazes' rotations, cycled through by the environments."""
         c = self.config
-        return SB3VecEnv(rotations(PAPER_TRAINING_MAZE), c.robot, c.n_envs, c.seed)
+        mazes = [rotated for maze in c.mazes for rotated in rotations(maze)]
+        return SB3VecEnv(mazes, c.robot, c.n_envs, c.seed)
+
+    @property
+    def champion_file(self) -> Path:
+        """The best evaluated model so far (``champion.zip`` at the top in older run folders)."""
+        legacy = self.out / "champion.zip"
+        return legacy if legacy.exists() else self.checkpoints / "champion.zip"
 
     def _tensorboard_dir(self) -> str | None:
         return str(self.out / "tensorboard") if self.config.tensorboard else None
@@ -258,37 +282,33 @@ class SB3Run(Run):
             env=self._env(),
             tensorboard_log=self._tensorboard_dir(),
         )
-        champion = [self.out / "champion.zip", self.out / "champion.json"]
+        champion = [self.champion_file, self.champion_file.with_suffix(".json")]
         if any(f.exists() or f.is_symlink() for f in champion):
             SB3Agent.load(champion[0])  # a damaged champion is refused here, by name
         self.seconds_before = state["seconds"]
         self.best = tuple(state["best"]) if state["best"] is not None else None
+        self.best_steps = state["best_steps"]
         self.converged = state["converged"]
         self.last_eval_steps = state["last_eval_steps"]
         self.started = time.monotonic()
         self.model.num_timesteps = state["num_timesteps"]
         return self.model.num_timesteps
 
-    def train(self, progress_bar: bool) -> None:
+    def train(self, progress: str) -> None:
         """Train until a budget is spent or the evaluation episodes are all optimal.
 
-        SB3's progress bar counts steps; a run without a step limit shows the
+        The progress shown counts steps; a run without a step limit shows the
         seconds spent instead.
         """
-        from tqdm import tqdm
-
         config, model = self.config, self.model
         assert model is not None
-        steps_bar = progress_bar and config.budget_steps is not None
-        with tqdm(
-            total=config.budget_seconds,
-            unit="s",
-            disable=not progress_bar or steps_bar,
-            desc=f"{config.algo} direct seed {config.seed}",
-            dynamic_ncols=True,
-        ) as bar:
-            callback = _EvaluationCallback(self, None if bar.disable else bar)
-            mazes = rotations(PAPER_EVALUATION_MAZE)
+        total, unit = (config.budget_steps, "steps")
+        if config.budget_steps is None:
+            total, unit = config.budget_seconds, "s"
+        desc = f"{config.algo} direct seed {config.seed}"
+        with Progress(total, unit, desc, mode=progress) as shown:
+            callback = _EvaluationCallback(self, shown)
+            mazes = [rotated for maze in config.eval_mazes for rotated in rotations(maze)]
             callback.evaluator = Evaluator(config.robot, mazes=mazes, inputs=False)
             remaining = UNLIMITED_STEPS
             if config.budget_steps is not None:  # whole rollouts, never past the budget
@@ -300,18 +320,42 @@ class SB3Run(Run):
                     callback=callback,
                     reset_num_timesteps=False,
                     tb_log_name="direct",
-                    progress_bar=steps_bar,
                 )
             # A converged run stopped one step after its last evaluation, before any
             # training on it: the model evaluated is the final one, so no second row.
             if self.last_eval_steps != int(model.num_timesteps) and not self.converged:
                 callback.init_callback(model)
                 callback.evaluate_now()
-            callback.show_seconds()
+            callback.init_callback(model)
+            callback.show()
 
     def final_agent(self) -> SB3Agent:
+        """The model when training stopped, or the best evaluated one (``agent_rule``)."""
         assert self.model is not None
+        if self.config.agent_rule == "best-eval":
+            return SB3Agent.load(self.champion_file)
         return SB3Agent(self.model, self.config.robot, self.config.algo)
+
+    def save_agent(self, agent: SB3Agent, path: Path) -> None:
+        agent.save(path)
+
+    def agent_figures(self) -> dict[str, Any]:
+        assert self.model is not None
+        c = self.config
+        steps = self.best_steps if c.agent_rule == "best-eval" else int(self.model.num_timesteps)
+        return {"agent_rule": c.agent_rule, "agent_steps": steps, "agent_untrained": steps == 0}
+
+    def stop_reason(self) -> str:
+        assert self.model is not None
+        c, steps = self.config, int(self.model.num_timesteps)
+        if self.converged:
+            return f"converged: every evaluation episode optimal (R̄ = 1) at {steps:,} env steps"
+        if c.budget_steps is not None and c.budget_steps - steps < self.rollout:
+            return (
+                f"the {c.budget_steps - steps:,} steps left cannot pay another rollout"
+                f" ({self.rollout:,} steps)"
+            )
+        return ""
 
     def figures(self) -> dict[str, Any]:
         assert self.model is not None
@@ -329,8 +373,8 @@ class SB3Run(Run):
         }
 
     def trajectory_mazes(self) -> list[tuple[str, str]]:
-        """The final agent in the 4 rotations of the paper's evaluation maze."""
-        mazes = rotations(PAPER_EVALUATION_MAZE)
+        """The agent in the 4 rotations of the first evaluation maze."""
+        mazes = rotations(self.config.eval_mazes[0])
         return [(f"evaluation-rotation-{index}", maze) for index, maze in enumerate(mazes)]
 
     @classmethod
@@ -353,6 +397,7 @@ class SB3Run(Run):
                 "num_timesteps": int(self.model.num_timesteps),
                 "seconds": self.seconds(),
                 "best": list(self.best) if self.best is not None else None,
+                "best_steps": self.best_steps,
                 "converged": self.converged,
                 "last_eval_steps": self.last_eval_steps,
                 "config_sha256": self.config_digest,
@@ -361,16 +406,16 @@ class SB3Run(Run):
 
 
 def train(
-    config: TrainConfig | Mapping[str, Any], out: str | os.PathLike, *, progress_bar: bool = False
+    config: TrainConfig | Mapping[str, Any], out: str | os.PathLike, *, progress: str = "off"
 ) -> RunResult:
     """Train a fresh agent as ``config`` says and write the run folder ``out``.
 
-    ``progress_bar`` shows a progress bar. Every regime: the curriculum ones
+    ``progress`` shows it (``bar``, ``lines`` or ``off``). Every regime: the curriculum ones
     run as :class:`~rl_baselines.curriculum.SB3CurriculumRun`.
     """
-    return SB3Run.fresh(config, out, progress_bar=progress_bar)
+    return SB3Run.fresh(config, out, progress=progress)
 
 
-def resume(out: str | os.PathLike, *, progress_bar: bool = False) -> RunResult:
+def resume(out: str | os.PathLike, *, progress: str = "off") -> RunResult:
     """Continue the run in ``out`` from its latest checkpoint (same config, remaining budget)."""
-    return SB3Run.resume(out, progress_bar=progress_bar)
+    return SB3Run.resume(out, progress=progress)

@@ -3,7 +3,11 @@
 SB3's own vectorisation (``DummyVecEnv``) loops over N Python environments;
 :class:`SB3VecEnv` instead drives one :class:`~amaze.agents.engine.BatchEngine` with
 N agents, so a step of all environments is one call into compiled code.
-Environment ``k`` plays ``mazes[k % len(mazes)]``.
+Environment ``k`` starts in ``mazes[k % len(mazes)]``; with more mazes than
+environments, each goes on to the next of its own in every episode
+(``mazes[(k + e * n_envs) % len(mazes)]`` in its episode ``e``), so every maze is
+played: a batch of a maze's 4 rotations with ``n_envs`` 4 keeps each
+environment on one rotation, moving to the next maze's same rotation.
 
 SB3 semantics: :meth:`SB3VecEnv.step_wait` returns ``(obs, rewards float32,
 dones, infos)``; an environment whose episode ended is reset in the same step
@@ -78,6 +82,8 @@ class SB3VecEnv(VecEnv):
         self._seed = seed
         self._actions: np.ndarray | None = None
         self._start = np.full(n_envs, time.time())
+        #: Episodes each environment has ended (which maze it plays next, with many mazes).
+        self._episodes = np.zeros(n_envs, dtype=np.int64)
 
     def _format(self, observations: np.ndarray) -> np.ndarray:
         return as_policy_observations(observations, self.robot)
@@ -87,7 +93,9 @@ class SB3VecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self._start[:] = time.time()
-        return self._format(self.engine.reset())
+        self._episodes[:] = 0
+        agents = np.arange(self.num_envs)
+        return self._format(self.engine.reset(agents, agents % len(self.mazes)))
 
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions)
@@ -101,6 +109,9 @@ class SB3VecEnv(VecEnv):
         result = self.engine.step(self._actions)
         self._actions = None
         dones = result.terminated | result.truncated
+        observations = result.observations
+        if len(self.mazes) > self.num_envs and dones.any():
+            observations = self._next_mazes(np.flatnonzero(dones))
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         episodes = result.episodes
         if len(episodes):
@@ -124,11 +135,17 @@ class SB3VecEnv(VecEnv):
                 }
                 self._start[agent] = now
         return (
-            self._format(result.observations),
+            self._format(observations),
             result.rewards.astype(np.float32),
             dones,
             infos,
         )
+
+    def _next_mazes(self, ended: np.ndarray) -> np.ndarray:
+        """Move the environments whose episode ended to their next maze; all observations."""
+        self._episodes[ended] += 1
+        assignment = (ended + self._episodes[ended] * self.num_envs) % len(self.mazes)
+        return self.engine.reset(ended, assignment)
 
     def close(self) -> None:
         """Nothing to release (the engine holds only arrays)."""

@@ -74,12 +74,13 @@ def refused_resume(
     damage: Callable[[Path], None],
     capsys: pytest.CaptureFixture[str],
 ) -> str:
-    """Damage file ``name`` of a copy of ``finished_run`` and ``--resume`` it.
+    """Damage file ``name`` of a copy of ``finished_run`` (its summary removed), ``--resume`` it.
 
     Checks the command's contract for a refusal (exit 2, exactly one line
     ``error: ...`` on stderr, nothing in the folder changed) and returns that line.
     """
     shutil.copytree(finished_run, out)
+    (out / "summary.json").unlink(missing_ok=True)  # a finished run is not resumed: killed before
     damage(out / name)
     before = snapshot(out)
     assert main(["--resume", str(out), "--no-progress"]) == 2

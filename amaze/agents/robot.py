@@ -7,8 +7,10 @@ A robot string is ``IO[V]`` or a shorthand ``S[V]``:
 * ``CC`` or ``C``: continuous, a ``V x V`` image window in, an acceleration out.
 
 ``V`` (vision) must be odd and within [5, 65] when given for image inputs (default
-15); it is accepted and ignored for discrete inputs (``D11`` is ``DD``), as in the
-reference. Discrete inputs with continuous outputs (``DC``) are not allowed.
+15). Discrete inputs see no image, so they take no vision: ``DD15`` or ``D11`` is
+an error. The reference accepted and ignored it (``D11`` was ``DD``), so a
+mistyped hybrid robot (``D15`` for ``H15``) silently became another robot.
+Discrete inputs with continuous outputs (``DC``) are not allowed.
 
 Why 65 at most (:data:`MAX_VISION`): a sign is drawn on the ``V - 2`` pixels
 inside the cell's walls, and the reference's own drawings of the built-in
@@ -43,6 +45,14 @@ class RobotStringError(AmazeError):
     """A robot string is malformed or describes an unsupported robot."""
 
 
+def _no_vision(vision: object) -> str:
+    """Why discrete inputs refuse a vision, and what the user may have meant."""
+    text = f"DD (discrete inputs) takes no vision size, got {vision!r}; write DD"
+    if isinstance(vision, int) and vision % 2 == 1 and MIN_VISION <= vision <= MAX_VISION:
+        text += f", or H{vision} / CC{vision} for {vision}x{vision} images"
+    return text
+
+
 class IOType(StrEnum):
     """Whether an input or output side is discrete or continuous."""
 
@@ -66,7 +76,8 @@ class Robot:
                 raise RobotStringError(
                     "robot 'DC': discrete inputs with continuous outputs are not supported"
                 )
-            object.__setattr__(self, "vision", None)
+            if self.vision is not None:
+                raise RobotStringError(_no_vision(self.vision))
             return
         vision = DEFAULT_VISION if self.vision is None else self.vision
         vision = check_integer("robot vision", vision, error=RobotStringError)
@@ -96,7 +107,7 @@ class Robot:
             raise RobotStringError(
                 f"robot string '{text}': discrete inputs with continuous outputs are not supported"
             )
-        vision = int(rest) if rest and io[0] == "C" else None
+        vision = int(rest) if rest else None
         try:
             return cls(IOType(io[0]), IOType(io[1]), vision)
         except RobotStringError as error:
@@ -128,3 +139,16 @@ class Robot:
 def as_robot(robot: Robot | str) -> Robot:
     """A :class:`Robot` from a robot or its string."""
     return robot if isinstance(robot, Robot) else Robot.from_string(robot)
+
+
+def robot_name(robot: Robot | str) -> str:
+    """A robot as a message should name it: as the user spelled it, then its canonical string.
+
+    ``H15`` reads ``H15 (CD15)``, ``CD15`` reads ``CD15``: an error about the
+    user's ``--robot H15`` must show ``H15``, which a canonical ``CD15`` alone
+    would hide.
+    """
+    canonical = as_robot(robot).to_string()
+    if not isinstance(robot, str) or robot == canonical:
+        return canonical
+    return f"{robot} ({canonical})"

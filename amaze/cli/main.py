@@ -4,7 +4,8 @@ Sub-commands: ``inspect``, ``render``, ``stats`` (mazes from their strings;
 ``-`` reads them from standard input, one per line), ``run`` (alias ``play``:
 one controller, one episode, optional trajectory PNG and GIF), ``inputs``
 (the input-recognition test), ``suite`` (the standard evaluation suite:
-list, render, evaluate a controller) and ``interpolate`` (the stages of an
+list, render, evaluate a controller), ``evaluate`` (any agent on any mazes,
+by the evaluation protocol) and ``interpolate`` (the stages of an
 interpolation curriculum between two mazes). User mistakes print one line
 ``error: ...`` on standard error and exit with status 2; there is no traceback
 for bad input.
@@ -17,13 +18,16 @@ import csv
 import json
 import sys
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
-from amaze.errors import AmazeError, UsageError
+from amaze.errors import AmazeError, MazeStringError, UsageError
 from amaze.maze.signs import register_custom_signs
 from amaze.runs.command import CommandParser, run_command
+
+if TYPE_CHECKING:
+    from amaze.evaluation.protocol import EvaluationReport
 
 
 def _maze_strings(arguments: Sequence[str]) -> Iterator[str]:
@@ -230,6 +234,129 @@ def _cmd_suite(args: argparse.Namespace) -> None:
         print(f"suite picture -> {render_path}")
 
 
+#: The ``amaze evaluate`` argument that stands for the standard suite's 18 mazes.
+SUITE_ARGUMENT = "suite"
+
+
+def _listed_mazes(lines: Iterable[str], source: str) -> Iterator[tuple[str, str]]:
+    """(maze string, where it was read) of a list: blank lines and ``#`` comments skipped."""
+    for number, line in enumerate(lines, start=1):
+        text = line.split("#", 1)[0].strip()
+        if text:
+            yield text, f"{source}, line {number}"
+
+
+def _maze_file(argument: str) -> Iterator[tuple[str, str]]:
+    """The maze strings of a file, one per line."""
+    path = Path(argument)
+    if path.is_dir():
+        raise UsageError(f"maze file '{path}' is a folder")
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise UsageError(f"maze file '{path}' is not UTF-8 text") from None
+    yield from _listed_mazes(lines, f"maze file '{path}'")
+
+
+def _evaluation_arguments(arguments: Sequence[str]) -> Iterator[tuple[str, str | None]]:
+    """(maze string, where it was read or None) of ``amaze evaluate``'s maze arguments.
+
+    An argument is ``-`` (standard input), ``suite`` (the standard suite's
+    mazes), the path of an existing file of maze strings, or else a maze string.
+    """
+    for argument in arguments:
+        if argument == "-":
+            yield from _listed_mazes(sys.stdin, "standard input")
+        elif argument == SUITE_ARGUMENT:
+            from amaze.evaluation.suite import standard_suite
+
+            yield from ((m, None) for m in standard_suite().maze_strings(rotations=False))
+        elif Path(argument).exists():
+            yield from _maze_file(argument)
+        else:
+            yield argument, None
+
+
+def _evaluation_mazes(arguments: Sequence[str]) -> list[str]:
+    """The canonical strings of the mazes to evaluate on, each checked (not generated).
+
+    A seedless string draws its seed here, once. An empty list is a usage error.
+    """
+    from amaze.maze.spec import MazeSpec
+
+    mazes = []
+    for text, where in _evaluation_arguments(arguments):
+        try:
+            mazes.append(MazeSpec.from_string(text).to_string())
+        except MazeStringError as error:
+            message = str(error) if f"'{text}'" in str(error) else f"maze '{text}': {error}"
+            raise MazeStringError(f"{where}: {message}" if where else message) from None
+    if not mazes:
+        raise UsageError("no maze to evaluate on: give maze strings, a file of them, - or suite")
+    return mazes
+
+
+def _evaluation_outcome(args: argparse.Namespace, report: EvaluationReport) -> dict[str, Any]:
+    """The JSON object of ``amaze evaluate``: the report's summary, per maze figures."""
+    outcome = {"agent": args.agent, **report.summary(), "mean_steps": report.mean_steps}
+    if args.agent == "random":
+        outcome["seed"] = args.seed
+    outcome["mazes"] = [
+        {
+            "maze": maze,
+            "episodes": scores["episodes"],
+            "success_rate": scores["success_rate"],
+            "normalized_reward": scores["paper_reward"],
+            "pretty_reward": scores["pretty_reward"],
+            "mean_steps": scores["mean_steps"],
+        }
+        for (maze, _), scores in report.per_maze().items()
+    ]
+    return outcome
+
+
+def _evaluation_table(outcome: dict[str, Any]) -> str:
+    """The readable table of ``amaze evaluate``: one row per maze, then all of them."""
+    rows = [(m["maze"], m) for m in outcome["mazes"]] + [("all", outcome)]
+    width = max(len(name) for name, _ in rows)
+    # 'mean R̄' has a combining macron: 7 characters, 6 columns wide
+    header = f"{'maze':<{width}} {'episodes':>8} {'success':>8} {'mean R̄':>9} {'mean steps':>10}"
+    lines = [f"  {header}"]
+    for name, scores in rows:
+        lines.append(
+            f"  {name:<{width}} {scores['episodes']:>8} {100 * scores['success_rate']:7.1f}%"
+            f" {scores['normalized_reward']:+8.3f} {scores['mean_steps']:10.1f}"
+        )
+    recognition = outcome["input_recognition"]
+    if recognition is not None:
+        rates = ", ".join(f"{k} {100 * v:.1f}%" for k, v in outcome["input_rates"].items())
+        lines.append(f"  input recognition {100 * recognition:.1f}% ({rates})")
+    return "\n".join(lines)
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> None:
+    from amaze.agents.robot import as_robot
+    from amaze.evaluation.controllers import make_controller
+    from amaze.evaluation.protocol import evaluate
+
+    csv_path = _output_file(args.csv, ".csv")
+    mazes = _evaluation_mazes(args.mazes)
+    policy = make_controller(args.agent, args.robot, seed=args.seed)
+    robot = as_robot(getattr(policy, "robot", None) or args.robot or "DD")
+    report = evaluate(
+        policy, robot, mazes, rotations=args.rotations, deadline_factor=args.deadline_factor
+    )
+    outcome = _evaluation_outcome(args, report)
+    if args.json:
+        print(json.dumps(outcome))
+    else:
+        print(f"{args.agent} ({outcome['robot']}) on {report.played()}:")
+        print(_evaluation_table(outcome))
+    if csv_path is not None:
+        report.write_csv(csv_path)
+        print(f"episodes -> {csv_path}", file=sys.stderr if args.json else sys.stdout)
+
+
 def _cmd_interpolate(args: argparse.Namespace) -> None:
     from amaze.curriculum.interpolation import interpolate, interpolation_start
     from amaze.maze.maze import Maze
@@ -279,8 +406,16 @@ def _deadline_factor(text: str) -> float:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
-def _add_agent_options(parser: argparse.ArgumentParser, controller: bool = True) -> None:
-    parser.add_argument("--robot", default="DD", help="robot string: DD, H15, CC15, ... (DD)")
+def _add_agent_options(
+    parser: argparse.ArgumentParser, controller: bool = True, robot: str | None = "DD"
+) -> None:
+    """``--robot`` (default ``robot``), ``--controller``, ``--seed`` and ``--deadline-factor``."""
+    parser.add_argument(
+        "--robot",
+        default=robot,
+        help="robot string: DD, H15, CC15, ..."
+        + (f" ({robot})" if robot else " (default: the agent file's; DD for random and oracle)"),
+    )
     if controller:
         parser.add_argument(
             "--controller",
@@ -378,6 +513,34 @@ def build_parser() -> argparse.ArgumentParser:
     _add_agent_options(suite, controller=False)
     suite.add_argument("--csv", metavar="FILE", help="with --evaluate: one row per episode")
     suite.set_defaults(run=_cmd_suite)
+
+    evaluate = commands.add_parser(
+        "evaluate", help="score an agent on mazes by the evaluation protocol"
+    )
+    evaluate.add_argument(
+        "agent",
+        metavar="AGENT",
+        help="a saved agent (evolved .npz, SB3 .zip, tabular .json), random or oracle",
+    )
+    evaluate.add_argument(
+        "mazes",
+        nargs="+",
+        metavar="MAZE",
+        help="maze strings, files of them (one per line, # comments), - (stdin)"
+        " or suite (the standard suite's 18 mazes)",
+    )
+    evaluate.add_argument(
+        "--rotations",
+        type=int,
+        choices=(1, 4),  # amaze.evaluation.protocol.ROTATIONS
+        default=4,
+        help="4: each maze in its four rotations, as training and the suite (default);"
+        " 1: each maze as given",
+    )
+    _add_agent_options(evaluate, controller=False, robot=None)
+    evaluate.add_argument("--json", action="store_true", help="print one JSON object")
+    evaluate.add_argument("--csv", metavar="FILE", help="write one row per episode")
+    evaluate.set_defaults(run=_cmd_evaluate)
 
     interpolate = commands.add_parser(
         "interpolate", help="the interpolation curriculum from a start maze to an end maze"

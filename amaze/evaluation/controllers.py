@@ -31,7 +31,7 @@ import numpy as np
 
 from amaze.agents.engine import BatchEngine
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
-from amaze.agents.robot import Robot, as_robot
+from amaze.agents.robot import Robot, as_robot, robot_name
 from amaze.agents.simulation import Simulation
 from amaze.errors import AmazeError
 from amaze.maze.directions import OFFSETS, OFFSETS_ARRAY
@@ -479,44 +479,88 @@ def _agent_loader(path: str) -> Any | None:
     return next(iter(found)).load() if found else None
 
 
-def make_controller(name: str, robot: Robot | str, *, seed: int = 0) -> Any:
+def make_controller(name: str, robot: Robot | str | None = None, *, seed: int = 0) -> Any:
     """The policy called ``name`` for ``robot``, for the command line.
 
     ``name`` is ``random`` (seeded with ``seed``), ``oracle``, the path of a
     tabular controller saved as JSON (which keeps its own seed; DD robots only),
     or the path of an agent saved by another package that registers a loader
     for its file suffix (SB3 agents, ``.zip``, from ``rl_baselines``; evolved
-    agents, ``.npz``, from ``evolution``).
+    agents, ``.npz``, from ``evolution``). ``robot=None`` takes the robot a
+    saved agent records (DD for ``random`` and ``oracle``); a robot that the
+    agent does not drive is refused, named as the user spelled it.
     """
-    robot = as_robot(robot)
+    given = "DD" if robot is None else robot
+    as_robot(given)  # a bad robot string is refused before any file is read
     if name == "random":
-        return RandomController(robot, seed=seed)
+        return RandomController(given, seed=seed)
     if name == "oracle":
-        return OracleController(robot)
+        return OracleController(given)
     loader = _agent_loader(name) if isinstance(name, str) else None
     if loader is not None:
         if not Path(name).is_file():
             what = "is not a file" if Path(name).exists() else "does not exist"
             raise ControllerError(f"agent file '{name}' {what}")
-        agent = loader(name)
-        agent_robot = getattr(agent, "robot", None)
-        if agent_robot is not None and as_robot(agent_robot) != robot:
-            raise ControllerError(
-                f"agent '{name}' drives {as_robot(agent_robot).to_string()} robots,"
-                f" not {robot.to_string()}: pass --robot {as_robot(agent_robot).to_string()}"
-            )
+        agent = _pointing_at_the_run_agent(name, loader)
+        _check_agent_robot(name, getattr(agent, "robot", None), robot)
         return agent
     if isinstance(name, str) and (name.endswith(".json") or Path(name).is_file()):
-        if robot.kind != "discrete":
+        if robot is not None and as_robot(robot) != TabularController.robot:
             raise ControllerError(
-                f"tabular controller '{name}' drives DD robots only, not {robot.to_string()}"
+                f"tabular controller '{name}' drives DD robots only, not {robot_name(robot)}"
             )
-        return TabularController.load(name)
+        return _pointing_at_the_run_agent(name, TabularController.load)
     raise ControllerError(
         f"unknown controller {name!r}: choose {', '.join(CONTROLLERS)},"
         " or the path of a saved agent (tabular .json, SB3 .zip with rl_baselines,"
         " evolved .npz with evolution)"
     )
+
+
+#: How far up from a file :func:`_run_agent_hint` looks for the run folder holding it.
+_RUN_FOLDER_DEPTH = 6
+
+
+def _pointing_at_the_run_agent(name: str, load: Any) -> Any:
+    """``load(name)``; a file that is no agent but lies in a run folder names the run's agent.
+
+    Run folders hold many files (checkpoints, learners, progress logs) and
+    one agent, written at the top when the run finishes (``summary.json``'s
+    ``agent``): an error on another file says where that one is.
+    """
+    try:
+        return load(name)
+    except AmazeError as error:
+        hint = _run_agent_hint(Path(name))
+        if not hint:
+            raise
+        raise type(error)(f"{error}; {hint}") from None
+
+
+def _run_agent_hint(path: Path) -> str:
+    """Where the agent of the run folder holding ``path`` is, if ``path`` is inside one."""
+    for folder in list(path.resolve().parents)[:_RUN_FOLDER_DEPTH]:
+        if not (folder / "config.json").is_file():
+            continue
+        for agent in sorted(folder.glob("agent.*")):
+            if agent.suffix in (".npz", ".zip") and agent.resolve() != path.resolve():
+                return f"it is not an agent file: the agent of the run '{folder}' is '{agent}'"
+        return f"it is not an agent file: the run '{folder}' writes its agent when it finishes"
+    return ""
+
+
+def _check_agent_robot(
+    name: str, agent_robot: Robot | str | None, robot: Robot | str | None
+) -> None:
+    """Refuse a robot that a saved agent does not drive (``None``: no robot asked or known)."""
+    if agent_robot is None or robot is None:
+        return
+    drives = as_robot(agent_robot)
+    if drives != as_robot(robot):
+        raise ControllerError(
+            f"agent '{name}' drives {drives.to_string()} robots, not {robot_name(robot)}:"
+            f" pass --robot {drives.to_string()}"
+        )
 
 
 # -----------------------------------------------------------------------------

@@ -55,7 +55,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from amaze.agents.observations import discrete_input, draw_cell
-from amaze.agents.robot import Robot, as_robot
+from amaze.agents.robot import Robot, as_robot, robot_name
 from amaze.errors import AmazeError
 from amaze.maze.directions import Direction
 from amaze.maze.maze import Maze
@@ -254,10 +254,11 @@ def enumerate_inputs(
 
     :raises InputRecognitionError: for a continuous robot or a value that is not a sign.
     """
+    name = robot_name(robot)
     robot = as_robot(robot)
     if not robot.discrete_outputs:
         raise InputRecognitionError(
-            f"robot '{robot}': the input-recognition test needs discrete actions"
+            f"robot {name}: the input-recognition test needs discrete actions"
             " (a DD or hybrid robot); continuous inputs cannot be enumerated"
         )
     clues = _as_signs("clues", clues)

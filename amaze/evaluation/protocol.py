@@ -20,6 +20,14 @@ returns an :class:`EvaluationReport`:
 
 and every episode's scores, aggregated per suite maze and per column.
 
+**Rotations.** The suite plays each of its mazes in its four rotations (start
+in each corner), as training does. Other mazes are played as given by
+default, one episode each; ``rotations=4`` plays each in its four rotations
+(:func:`~amaze.maze.rotations`), ``rotations=1`` plays the suite's mazes in
+their base orientation only. Either way the report records the count
+(``EvaluationReport.rotations``, the ``rotations`` key of :meth:`~EvaluationReport.summary`),
+so that every figure says how its mazes were played.
+
 Evolved agents, SB3 agents and the built-in controllers all go through here,
 so their figures are comparable. :class:`Evaluator` prepares the mazes once
 (generation and compilation take longer than an evaluation) and can then
@@ -40,16 +48,31 @@ import numpy as np
 from amaze.agents.engine import BatchEngine
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR, check_deadline_factor
 from amaze.agents.robot import Robot, as_robot
+from amaze.errors import OptionError
 from amaze.evaluation.inputs import InputSet, evaluate_inputs, inputs_for_maze
 from amaze.evaluation.policy import run_episodes
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE, EvaluationSuite, standard_suite
 from amaze.maze.maze import Maze, as_maze
+from amaze.maze.maze import rotations as all_rotations
 from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
 
-__all__ = ["EpisodeResult", "EvaluationReport", "Evaluator", "evaluate"]
+__all__ = [
+    "ROTATIONS",
+    "EpisodeResult",
+    "EvaluationReport",
+    "Evaluator",
+    "check_rotations",
+    "evaluate",
+]
 
 #: The signs of the input-recognition test: those of the suite's mazes (C1, L.25, T.5).
 INPUT_SIGNS_MAZE = PAPER_TRAINING_MAZE
+
+#: How many rotations of each maze an evaluation may play: the maze as given, or all four.
+ROTATIONS: tuple[int, ...] = (1, 4)
+#: The rotations of the standard suite (72 episodes), those of training sets too.
+SUITE_ROTATIONS = 4
 
 
 @dataclass(frozen=True)
@@ -59,7 +82,10 @@ class EpisodeResult:
     Unlike :class:`~amaze.evaluation.policy.EpisodeResults` (arrays, one
     finished episode per agent of a run), it is one episode of one agent, in
     plain values, labelled by its maze string, suite column and row, and start
-    corner; ``paper_reward`` is the paper's R̄ of the episode.
+    corner; ``paper_reward`` is the paper's R̄ of the episode. ``maze`` is the
+    maze played (a rotation, when rotations are played); for mazes outside the
+    suite, ``column`` is the maze as it was given (its canonical string, shared
+    by its rotations) and ``row`` is empty.
     """
 
     maze: str
@@ -87,6 +113,8 @@ class EvaluationReport:
     episodes: tuple[EpisodeResult, ...]
     input_recognition: float | None = None
     input_rates: dict[str, float] = field(default_factory=dict)
+    #: Episodes played per given maze: 1 (as given) or 4 (its four rotations).
+    rotations: int = 1
 
     @property
     def success_rate(self) -> float:
@@ -99,6 +127,11 @@ class EvaluationReport:
     @property
     def pretty_reward(self) -> float:
         return _mean([e.pretty_reward for e in self.episodes])
+
+    @property
+    def mean_steps(self) -> float:
+        """Mean length of the episodes in steps (a failed one lasts until its deadline)."""
+        return _mean([float(e.steps) for e in self.episodes])
 
     def grouped(self, key: str) -> dict[Any, dict[str, float]]:
         """Success rate and mean rewards per value of an episode field (e.g. ``"column"``).
@@ -115,6 +148,7 @@ class EvaluationReport:
                 "success_rate": _mean([float(e.success) for e in items]),
                 "paper_reward": _mean([e.paper_reward for e in items]),
                 "pretty_reward": _mean([e.pretty_reward for e in items]),
+                "mean_steps": _mean([float(e.steps) for e in items]),
             }
             for group, items in groups.items()
         }
@@ -123,7 +157,10 @@ class EvaluationReport:
         return self.grouped("column")
 
     def per_maze(self) -> dict[tuple[str, str], dict[str, float]]:
-        """Per suite maze (column, row), its four rotations together."""
+        """Per suite maze (column, row), its rotations together.
+
+        A maze outside the suite is keyed ``(its string as given, "")``.
+        """
         return self.grouped("suite_maze")
 
     def summary(self) -> dict[str, Any]:
@@ -135,17 +172,27 @@ class EvaluationReport:
         where the name changes; everything that writes or reads a summary
         (run folders, the training commands) goes through this dict, so no
         other code renames the reward. ``pretty_reward`` (the reference
-        library's normalised reward) keeps its name.
+        library's normalised reward) keeps its name. ``rotations`` says how
+        each maze was played (1: as given; 4: in its four rotations).
         """
         return {
             "robot": self.robot,
             "episodes": len(self.episodes),
+            "rotations": self.rotations,
             "success_rate": self.success_rate,
             "normalized_reward": self.paper_reward,
             "pretty_reward": self.pretty_reward,
             "input_recognition": self.input_recognition,
             "input_rates": dict(self.input_rates),
         }
+
+    def played(self) -> str:
+        """How the mazes were played, in words: ``18 mazes, each in its 4 rotations``."""
+        mazes = len(self.episodes) // max(self.rotations, 1)
+        noun = "maze" if mazes == 1 else "mazes"
+        if self.rotations == 1:
+            return f"{mazes} {noun}, each as given (1 rotation)"
+        return f"{mazes} {noun}, each in its {self.rotations} rotations"
 
     def write_csv(self, path: str | Path) -> None:
         """One row per episode."""
@@ -165,6 +212,7 @@ class EvaluationReport:
             f"{len(self.episodes)} episodes ({self.robot}): success {100 * self.success_rate:.1f}%,"
             f" mean R̄ {self.paper_reward:+.3f}, mean pretty reward {self.pretty_reward:+.3f},"
             f" input recognition {recognition}",
+            f"  {self.played()}",
         ]
         if self.input_rates:
             rates = ", ".join(f"{k} {100 * v:.1f}%" for k, v in self.input_rates.items())
@@ -180,24 +228,52 @@ class EvaluationReport:
         return "\n".join(lines)
 
 
+def check_rotations(rotations: int | None, suite: bool) -> int:
+    """The rotations an evaluation plays: 1 or 4; ``None`` is 4 for the suite, 1 otherwise.
+
+    ``None`` keeps what each maze set has always meant: the standard suite is
+    defined by its 72 episodes (18 mazes x 4 rotations), while a list of mazes
+    is played as given (callers that want every corner pass the rotations
+    themselves, from :func:`~amaze.maze.rotations`, or ``rotations=4``).
+    """
+    if rotations is None:
+        return SUITE_ROTATIONS if suite else 1
+    number = check_integer("rotations", rotations, error=OptionError)
+    if number not in ROTATIONS:
+        raise OptionError(
+            f"rotations {rotations!r} must be 1 (each maze as given) or 4 (its four rotations)"
+        )
+    return number
+
+
+def _suite_mazes(suite: EvaluationSuite, rotations: int) -> list[tuple[str, tuple[str, str]]]:
+    """The suite's maze strings to play and their (column, row) labels."""
+    if rotations == 1:
+        return [(m.string, (m.column, m.row)) for m in suite.mazes]
+    return [(rotated, (m.column, m.row)) for m, rotated in suite.episodes()]
+
+
 def _labelled_mazes(
-    mazes: EvaluationSuite | Sequence[Maze | MazeSpec | str] | None,
+    mazes: EvaluationSuite | Sequence[Maze | MazeSpec | str] | None, rotations: int
 ) -> tuple[list[Maze], list[tuple[str, str]]]:
     """The mazes to play and their (column, row) labels.
 
-    Mazes outside the suite are labelled by their own string (one column each).
+    Mazes outside the suite are labelled by their own canonical string (one
+    column each, shared by its rotations when ``rotations`` is 4).
     """
     if mazes is None:
         mazes = standard_suite()
     if isinstance(mazes, EvaluationSuite):
-        episodes = mazes.episodes()
-        return [Maze.from_string(rotated) for _, rotated in episodes], [
-            (m.column, m.row) for m, _ in episodes
-        ]
+        labelled = _suite_mazes(mazes, rotations)
+        return [Maze.from_string(text) for text, _ in labelled], [label for _, label in labelled]
     if not mazes:
-        raise ValueError("evaluate: give at least one maze")
-    generated = [as_maze(m) for m in mazes]
-    return generated, [(m.to_string(), "") for m in generated]
+        raise OptionError("evaluate: give at least one maze")
+    if rotations == 1:
+        generated = [as_maze(m) for m in mazes]
+        return generated, [(m.to_string(), "") for m in generated]
+    given = [_maze_key(m) for m in mazes]  # one seed drawn for a seedless string
+    played = [(rotated, (name, "")) for name in given for rotated in all_rotations(name)]
+    return [Maze.from_string(text) for text, _ in played], [label for _, label in played]
 
 
 def _maze_key(maze: Maze | MazeSpec | str) -> str:
@@ -211,7 +287,9 @@ class Evaluator:
     """The evaluation protocol prepared for one robot and one list of mazes.
 
     ``mazes`` defaults to the standard suite (72 episodes); any list of mazes
-    (strings, specs or mazes) can be given instead, each played once.
+    (strings, specs or mazes) can be given instead. ``rotations`` says how
+    each maze is played: 1 (as given) or 4 (in its four rotations); the default
+    (``None``) is 4 for the suite and 1 for a list (:func:`check_rotations`).
     ``inputs=False`` skips the input-recognition test.
     """
 
@@ -220,12 +298,15 @@ class Evaluator:
         robot: Robot | str = "DD",
         mazes: EvaluationSuite | Sequence[Maze | MazeSpec | str] | None = None,
         *,
+        rotations: int | None = None,
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         inputs: bool = True,
     ) -> None:
         self.robot = as_robot(robot)
         deadline_factor = check_deadline_factor(deadline_factor)  # before generating mazes
-        generated, self.labels = _labelled_mazes(mazes)
+        suite = mazes is None or isinstance(mazes, EvaluationSuite)
+        self.rotations = check_rotations(rotations, suite)
+        generated, self.labels = _labelled_mazes(mazes, self.rotations)
         self.maze_strings = [m.to_string() for m in generated]
         self.starts = [m.spec.start.shorthand for m in generated]
         self.engine = BatchEngine(
@@ -239,7 +320,7 @@ class Evaluator:
         return self.evaluate(policy)
 
     def evaluate(self, policy: Any) -> EvaluationReport:
-        """Play ``policy`` once in every maze and run the input-recognition test."""
+        """Play ``policy`` once in every maze (or rotation) and run the input-recognition test."""
         results = run_episodes(self.engine, policy)
         episodes = tuple(
             EpisodeResult(
@@ -267,14 +348,19 @@ class Evaluator:
             episodes=episodes,
             input_recognition=recognition,
             input_rates=rates,
+            rotations=self.rotations,
         )
 
 
 @lru_cache(maxsize=8)
 def _evaluator(
-    robot: str, mazes: tuple[str, ...] | None, deadline_factor: float, inputs: bool
+    robot: str,
+    mazes: tuple[str, ...] | None,
+    rotations: int | None,
+    deadline_factor: float,
+    inputs: bool,
 ) -> Evaluator:
-    return Evaluator(robot, list(mazes) if mazes is not None else None,
+    return Evaluator(robot, list(mazes) if mazes is not None else None, rotations=rotations,
                      deadline_factor=deadline_factor, inputs=inputs)  # fmt: skip
 
 
@@ -283,11 +369,18 @@ def evaluate(
     robot: Robot | str = "DD",
     mazes: Sequence[Maze | MazeSpec | str] | None = None,
     *,
+    rotations: int | None = None,
     deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
     inputs: bool = True,
 ) -> EvaluationReport:
-    """Score ``policy`` on the standard suite (or on ``mazes``); see the module docstring."""
+    """Score ``policy`` on the standard suite (or on ``mazes``); see the module docstring.
+
+    ``rotations`` is 1 (each maze as given) or 4 (each in its four rotations);
+    by default 4 for the suite (72 episodes) and 1 for ``mazes``. The report's
+    ``rotations`` records the count played.
+    """
     key = None if mazes is None else tuple(_maze_key(m) for m in mazes)
+    played = check_rotations(rotations, mazes is None)
     factor = check_deadline_factor(deadline_factor)
-    evaluator = _evaluator(as_robot(robot).to_string(), key, factor, inputs)
+    evaluator = _evaluator(as_robot(robot).to_string(), key, played, factor, inputs)
     return evaluator.evaluate(policy)

@@ -35,7 +35,11 @@ reference generates a maze from gives the same maze here):
   time-based seed);
 * tokens without effect (``l.25`` without lure signs, ``L.25`` without a lure
   probability) are accepted, as in the reference, but emit a
-  :class:`~amaze.errors.MazeStringWarning`.
+  :class:`~amaze.errors.MazeStringWarning`;
+* so do ``U`` and ``R`` tokens with trailing characters (``Ux``, ``UR``,
+  ``R90``): the reference reads them by their first letter and ignores the
+  rest, and so do we, but the rest is named in the warning (``UR`` is
+  unicursive and rotated; ``U_R`` was probably meant).
 
 A string without a seed gets a fresh random one (from the operating system's
 entropy, not the clock, so two mazes made in the same millisecond differ); the
@@ -164,7 +168,8 @@ class MazeSpec:
         values: dict[str, object] = {}
         signs: dict[str, list[Sign]] = {"clue": [], "lure": [], "trap": []}
         set_tokens: dict[str, str] = {}
-        for token in text.split("__")[-1].replace("_", " ").split():
+        tokens = text.split("__")[-1].replace("_", " ").split()
+        for token in tokens:
             _parse_token(token, values, signs, set_tokens)
         values.update({name: tuple(lst) for name, lst in signs.items()})
         values.update(overrides)
@@ -173,6 +178,7 @@ class MazeSpec:
         except MazeStringError as error:
             raise MazeStringError(f"maze string '{text}': {error}") from None
         _warn_unused_tokens(text, spec, set_tokens, signs)
+        _warn_flag_tails(text, tokens)
         return spec
 
     def to_string(self, simplify: bool = False) -> str:
@@ -264,6 +270,36 @@ def _parse_token(
         raise MazeStringError(f"token '{token}': {error}") from None
     except ValueError as error:  # int()/float() of a malformed tail, or a bad sign
         raise MazeStringError(f"malformed token '{token}': {error}") from None
+
+
+#: The flag tokens whose first letter alone counts: what follows is ignored (reference §2.2).
+_FLAGS = ("U", "R")
+
+
+def _flag_advice(token: str) -> str:
+    """What to write instead of a flag token with a tail.
+
+    ``UR`` or ``U5x5``: two tokens run together (``U_R``, ``U_5x5``), when the
+    tail reads as a token; otherwise the flag alone (``Ux``: ``U``).
+    """
+    head, tail = token[0], token[1:]
+    try:
+        _parse_token(tail, {}, {"clue": [], "lure": [], "trap": []}, {})
+    except MazeStringError:
+        return f"write '{head}' alone"
+    return f"did you mean '{head}_{tail}' (two tokens)?"
+
+
+def _warn_flag_tails(text: str, tokens: Iterable[str]) -> None:
+    """Warn about ``U``/``R`` tokens with trailing characters, read as the flag alone."""
+    for token in tokens:
+        if token[0] in _FLAGS and len(token) > 1:
+            warnings.warn(
+                f"maze string '{text}': token '{token}' is read as '{token[0]}' (the reference"
+                f" ignores what follows {token[0]}); {_flag_advice(token)}",
+                MazeStringWarning,
+                stacklevel=3,
+            )
 
 
 def _warn_unused_tokens(

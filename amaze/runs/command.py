@@ -13,7 +13,9 @@
   :class:`~amaze.runs.lifecycle.Run` class: its config's fields become the
   options (:class:`~amaze.runs.config.RunConfig`), plus ``--config``,
   ``--out``, ``--resume``, ``--replicates``, ``--workers``, ``--backend``,
-  ``--address`` and ``--progress``.
+  ``--address`` and ``--progress``. Its progress is a bar on a terminal and
+  plain lines otherwise (:mod:`amaze.runs.progress`); Ctrl-C and SIGTERM end
+  it with one line saying what is saved and the command that resumes it.
 """
 
 from __future__ import annotations
@@ -21,10 +23,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import signal
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
+from pathlib import Path
 from typing import NoReturn
 
 from amaze.errors import AmazeError, UsageError, one_line
@@ -56,8 +60,32 @@ def run_command(body: Callable[[], int | None]) -> int:
     except (AmazeError, OSError) as error:
         print(f"error: {one_line(error)}", file=sys.stderr)
         return EXIT_USAGE
+    except Terminated:
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         return 130
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program runs, so that it ends as an interrupt does."""
+
+
+@contextlib.contextmanager
+def terminated_as_interrupt() -> Iterator[None]:
+    """Meanwhile, SIGTERM raises :class:`Terminated` (the main thread only; else nothing)."""
+
+    def terminate(signum: int, frame: object) -> None:
+        raise Terminated
+
+    try:
+        previous = signal.signal(signal.SIGTERM, terminate)
+    except ValueError:  # not the main thread: signals go elsewhere
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 @dataclass(frozen=True)
@@ -121,7 +149,8 @@ class TrainingCommand:
         run.add_argument(
             "--progress",
             action=argparse.BooleanOptionalAction,
-            help="progress bar (default: on when stderr is a terminal)",
+            help="a progress bar (--no-progress: nothing; default: a bar on a terminal,"
+            " else a plain line at least every 30 s)",
         )
         return parser
 
@@ -132,8 +161,15 @@ class TrainingCommand:
 
     def _run(self, argv: list[str]) -> int:
         args = self.parser().parse_args(argv)
-        progress = sys.stderr.isatty() if args.progress is None else args.progress
+        if args.progress is None:
+            progress = "bar" if sys.stderr.isatty() else "lines"
+        else:
+            progress = "bar" if args.progress else "off"
         check_backend(args.backend, args.address)
+        if args.workers is not None and args.replicates == 1:
+            raise UsageError(
+                f"--workers {args.workers} runs replicates at once: give --replicates K"
+            )
         if args.replicates != 1:
             return replicate_command(
                 self.module,
@@ -151,11 +187,32 @@ class TrainingCommand:
                 " a single run has nothing to distribute"
             )
         context = self.run_context(args) if self.run_context else contextlib.nullcontext()
-        with context:
-            result = self._one_run(args, progress)
+        with context, terminated_as_interrupt():
+            try:
+                result = self._one_run(args, progress)
+            except KeyboardInterrupt as interrupt:
+                self._say_interrupted(args, interrupt)
+                raise
+        if result.finished_before:
+            print(f"{result.out} holds a finished run (its summary.json): nothing was changed")
         print(result.headline)
+        for line in Run.closing_lines(result.summary):
+            print(line)
         print(f"run folder: {result.out} ({', '.join(result.outputs)})")
         return 0
+
+    def _say_interrupted(self, args: argparse.Namespace, interrupt: KeyboardInterrupt) -> None:
+        """One line: what stopped the run, what is saved, and the command that resumes it."""
+        out = args.resume or args.out
+        what = "terminated (SIGTERM)" if isinstance(interrupt, Terminated) else "interrupted"
+        if out is None or not (Path(out) / "config.json").exists():
+            print(f"{what}: nothing was written", file=sys.stderr)
+            return
+        print(
+            f"{what}: {out} keeps what its last checkpoint saved; resume with:"
+            f" {self.prog} --resume {out}",
+            file=sys.stderr,
+        )
 
     def _refuse_with(self, args: argparse.Namespace, mode: str, why: str) -> None:
         """Refuse the options that ``mode`` (``--resume``, ``--replay``) would ignore."""
@@ -175,17 +232,17 @@ class TrainingCommand:
     def _one_run(self, args: argparse.Namespace, progress: bool) -> RunResult:
         if args.resume:
             self._refuse_with(args, "--resume", "continues the run as its config.json says")
-            return self.run_class.resume(args.resume, progress_bar=progress)
+            return self.run_class.resume(args.resume, progress=progress)
         if args.replay:
             self._refuse_with(args, "--replay", "reruns the replayed run's config.json")
             if not args.out:
                 raise UsageError("--replay needs --out, the folder of the new run")
-            return self.run_class.replay(args.replay, args.out, progress_bar=progress)
+            return self.run_class.replay(args.replay, args.out, progress=progress)
         if not args.out:
             raise UsageError("--out is required (or --resume DIR)")
         config_class = self.run_class.config_class
         data = config_class.from_file_and_arguments(args, args.config)
-        return self.run_class.fresh(data, args.out, progress_bar=progress)
+        return self.run_class.fresh(data, args.out, progress=progress)
 
     def entry_point(self) -> NoReturn:
         """Console-script entry point."""

@@ -27,10 +27,17 @@ from pathlib import Path
 from typing import Any, ClassVar, TypeVar, Union
 
 from amaze.agents.robot import as_robot
-from amaze.errors import AmazeError
-from amaze.validation import check_integer, parse_json
+from amaze.errors import AmazeError, one_line
+from amaze.validation import MAX_JSON_DEPTH, check_integer, nests_within, parse_json
 
-__all__ = ["MAX_SEED", "RunConfig", "config_from_dict", "option", "read_json_object"]
+__all__ = [
+    "MAX_SEED",
+    "RunConfig",
+    "config_from_dict",
+    "option",
+    "read_config_file",
+    "read_json_object",
+]
 
 #: The largest seed of a run: numpy's and SB3's global seeding take 32-bit seeds.
 MAX_SEED = 2**32 - 1
@@ -47,13 +54,23 @@ def option(
     choices: tuple[str, ...] | None = None,
     command_line: bool = True,
     metavar: str | None = None,
+    regimes: tuple[str, ...] | None = None,
 ) -> Any:
     """A config field with its ``--help`` text (and choices, if any).
 
     ``command_line=False`` keeps a field out of the command line (a nested
     object such as the hyperparameters, set through ``--config``).
+    ``regimes`` names the training regimes in which the field has an effect
+    (``None``: every regime); a config of another regime that sets it to
+    anything but its default is refused (:meth:`RunConfig.refuse_options_without_effect`).
     """
-    metadata = {"help": help, "choices": choices, "command_line": command_line, "metavar": metavar}
+    metadata = {
+        "help": help,
+        "choices": choices,
+        "command_line": command_line,
+        "metavar": metavar,
+        "regimes": regimes,
+    }
     if default_factory is not dataclasses.MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=metadata)
     return dataclasses.field(default=default, metadata=metadata)
@@ -90,6 +107,42 @@ def read_json_object(path: str | Path, error: type[ValueError], what: str = "con
     loaded = parse_json(data, where, error=error)
     if not isinstance(loaded, dict):
         raise error(f"{where} does not hold a JSON object")
+    return loaded
+
+
+def read_config_file(path: str | Path, error: type[ValueError]) -> dict:
+    """A ``--config`` file's object: YAML for ``.yml``/``.yaml``, JSON otherwise.
+
+    YAML is read with ``yaml.safe_load`` (plain data: no tag can build an
+    object or run code) and held to the rules of JSON: nesting at most
+    :data:`~amaze.validation.MAX_JSON_DEPTH` deep, and an object at the top.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in (".yml", ".yaml"):
+        return read_json_object(path, error)
+    import yaml
+
+    where = f"config file {str(path)!r}"
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise error(f"{where} does not exist") from None
+    except IsADirectoryError:
+        raise error(f"{where} is a directory") from None
+    except UnicodeDecodeError:
+        raise error(f"{where} is not UTF-8 text") from None
+    except OSError as problem:
+        raise error(f"{where} cannot be read: {problem.strerror or problem}") from None
+    try:
+        loaded = yaml.safe_load(text)
+    except yaml.YAMLError as problem:
+        raise error(f"{where} is not YAML: {one_line(problem)}") from None
+    except RecursionError:
+        loaded = [[]] * MAX_JSON_DEPTH
+    if not nests_within(loaded, MAX_JSON_DEPTH):
+        raise error(f"{where} nests lists or mappings more than {MAX_JSON_DEPTH} deep")
+    if not isinstance(loaded, dict):
+        raise error(f"{where} does not hold a mapping")
     return loaded
 
 
@@ -143,6 +196,25 @@ class RunConfig:
         """The JSON object of ``config.json``."""
         return dataclasses.asdict(self)
 
+    def refuse_options_without_effect(self, regime: str) -> None:
+        """Refuse every field set away from its default in a ``regime`` where it has no effect.
+
+        A field's ``regimes`` (:func:`option`) say where it acts; an option
+        that a run would silently ignore is a mistake worth one clear error.
+        """
+        for f in dataclasses.fields(self):
+            regimes = f.metadata.get("regimes")
+            if regimes is None or regime in regimes:
+                continue
+            value = getattr(self, f.name)
+            default = f.default if f.default_factory is dataclasses.MISSING else f.default_factory()
+            if value != default:
+                flag = f" (--{f.name.replace('_', '-')})" if f.metadata["command_line"] else ""
+                raise self.error(
+                    f"{f.name}{flag} {value!r} has no effect in the {regime} regime: it is"
+                    f" for {', '.join(regimes)}"
+                )
+
     # -- the command line ---------------------------------------------------
 
     @classmethod
@@ -189,7 +261,7 @@ class RunConfig:
         """
         data: dict[str, Any] = {}
         if config_file:
-            loaded = read_json_object(config_file, cls.error)
+            loaded = cls.adapt_config_file(read_config_file(config_file, cls.error))
             names = {f.name for f in dataclasses.fields(cls)}
             if set(loaded) <= names or cls.options_field is None:
                 data = loaded
@@ -205,3 +277,8 @@ class RunConfig:
     def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
         """Hook: trainer-specific meaning of command-line combinations (default: none)."""
         return data
+
+    @classmethod
+    def adapt_config_file(cls, loaded: dict[str, Any]) -> dict[str, Any]:
+        """Hook: a ``--config`` file in another tool's layout, as this config's (default: as is)."""
+        return loaded

@@ -124,7 +124,8 @@ from amaze.maze import rotations
 from amaze.maze.spec import MazeSpec
 from amaze.runs.config import RunConfig, option
 from amaze.runs.folder import read_text, write_bytes, write_json
-from amaze.runs.lifecycle import Run
+from amaze.runs.lifecycle import SPENT_ENOUGH, Run
+from amaze.runs.progress import Progress
 from amaze.validation import check_integer, check_number, parse_json
 
 __all__ = [
@@ -169,9 +170,12 @@ PROGRESS_FIELDS = (
 class CurriculumConfig(RunConfig):
     """The regime fields of a trainer's config (``regime``, ``curator``, ``stages``...).
 
-    In the direct regime ``curator``, ``stages`` and ``branches`` stay unset;
-    in a curriculum regime :meth:`validate` fills them with the regime's
-    defaults, so ``config.json`` records what ran.
+    Each field acts in some regimes (its ``regimes``, :func:`~amaze.runs.config.option`):
+    set in another one, it is refused. In the direct regime ``curator``,
+    ``stages`` and ``branches`` stay unset; in a curriculum regime
+    :meth:`validate` fills them with the regime's defaults, so ``config.json``
+    records what ran; in the direct regime it fills ``agent_rule`` and
+    ``eval_mazes`` with the trainer's defaults.
     """
 
     #: The regimes this trainer runs: the direct and curriculum ones; a trainer
@@ -179,6 +183,10 @@ class CurriculumConfig(RunConfig):
     supported_regimes: ClassVar[tuple[str, ...]] = ("direct", *CURRICULUM_REGIMES)
     #: The trainer's default ``epochs`` of an open-ended curriculum.
     default_epochs: ClassVar[int] = OPEN_EPOCHS
+    #: The rules that may choose a direct run's agent, the trainer's default first.
+    agent_rules: ClassVar[tuple[str, ...]] = ("final", "best-eval")
+    #: The evaluation mazes of a direct run when the config gives none.
+    default_eval_mazes: ClassVar[tuple[str, ...]] = ()
 
     regime: str = option("direct", "training regime", choices=REGIMES)
     curator: str | None = option(
@@ -186,45 +194,87 @@ class CurriculumConfig(RunConfig):
         "who selects agents and generates mazes in the edhucat regime: careful, moderate,"
         " risky, random, edens, human, interpolation or a plug-in's name (default: careful)",
         metavar="NAME",
+        regimes=CURRICULUM_REGIMES,
     )
     stages: int | None = option(
         None,
         "curriculum stages S, the trivial first one included; 0: open-ended, stages until"
         " the budget is spent (default: 10; 0 for edens)",
         metavar="S",
+        regimes=CURRICULUM_REGIMES,
     )
     branches: int | None = option(
         None,
         "branches K per stage (default: 3 for edhucat and edens, 1 for interpolation)",
         metavar="K",
+        regimes=CURRICULUM_REGIMES,
     )
     epochs: int | None = option(
         None,
         "an open-ended curriculum's epochs: each branch may spend budget / (K * epochs)"
         " (default: 100 for evolution, 10 for RL)",
         metavar="E",
+        regimes=CURRICULUM_REGIMES,
     )
     rehearsal: int | None = option(
         None,
         "earlier mazes of the lineage each branch also trains on, besides its own"
         " (default: 7 for edens, 0 otherwise)",
         metavar="R",
+        regimes=CURRICULUM_REGIMES,
     )
     target: str = option(
         PAPER_TRAINING_MAZE,
-        "the maze a curriculum leads to (interpolation's end, the curators' target)",
+        "the maze a curriculum or a co-evolution leads to (interpolation's end, the"
+        " curators' target, the family of the co-evolved mazes)",
         metavar="MAZE",
+        regimes=(*CURRICULUM_REGIMES, "coevolution"),
+    )
+    mazes: list[str] = option(
+        default_factory=lambda: [PAPER_TRAINING_MAZE],
+        help="training mazes of the direct regime, each played in its 4 rotations"
+        " (default: the paper's)",
+        regimes=("direct",),
+    )
+    eval_mazes: list[str] | None = option(
+        None,
+        "mazes a direct run evaluates its agent on as it trains, 4 rotations each"
+        " (default: the paper's evaluation maze for RL, none for evolution)",
+        regimes=("direct",),
+    )
+    agent_rule: str | None = option(
+        None,
+        "which agent a direct run hands over: final (the agent when training stops),"
+        " best-eval (the best on eval_mazes among the evaluations), best-fitness"
+        " (evolution: the best training fitness) (default: final for RL, best-fitness"
+        " for evolution; curricula hand over the curator's final choice, co-evolution"
+        " the best on its validation mazes)",
+        metavar="RULE",
+        regimes=("direct",),
+    )
+    final_training: bool = option(
+        True,
+        "spend what the stages leave of the budget on the final agent, trained on its"
+        " lineage's mazes (off: the paper's protocol, the final choice as it is)",
+        regimes=CURRICULUM_REGIMES,
     )
     curator_options: dict[str, Any] = option(
-        default_factory=dict, help="the curator's own options", command_line=False
+        default_factory=dict,
+        help="the curator's own options",
+        command_line=False,
+        regimes=CURRICULUM_REGIMES,
     )
     replay: str | None = option(
-        None, "the run whose recorded decisions this run replays", command_line=False
+        None,
+        "the run whose recorded decisions this run replays",
+        command_line=False,
+        regimes=CURRICULUM_REGIMES,
     )
     coevolution: dict[str, Any] = option(
         default_factory=dict,
         help="the maze population's options in the coevolution regime (MazePopulationConfig)",
         command_line=False,
+        regimes=("coevolution",),
     )
 
     @property
@@ -245,18 +295,16 @@ class CurriculumConfig(RunConfig):
             raise self.error(
                 f"regime {self.regime!r} {known} (choose from {', '.join(self.supported_regimes)})"
             )
-        try:
-            self.target = MazeSpec.from_string(str(self.target)).to_string()
-        except ValueError as problem:
-            raise self.error(f"target {self.target!r}: {problem}") from None
+        self.refuse_options_without_effect(self.regime)  # before anything is normalised
+        if self.regime != "direct":
+            self.target = self._maze("target", self.target)
+        self.mazes = self._maze_list("mazes", self.mazes)
+        if self.eval_mazes is not None:
+            self.eval_mazes = self._maze_list("eval_mazes", self.eval_mazes, empty=True)
         self._check_coevolution()
+        if self.regime == "direct":
+            self._direct_defaults()
         if not self.is_curriculum:
-            for name in ("curator", "stages", "branches", "epochs", "rehearsal", "replay"):
-                if getattr(self, name) is not None:
-                    raise self.error(
-                        f"{name} {getattr(self, name)!r} is for the curriculum regimes"
-                        f" ({', '.join(CURRICULUM_REGIMES)}), not {self.regime}"
-                    )
             return self
         if self.curator is None:
             self.curator = DEFAULT_CURATOR[self.regime]
@@ -306,6 +354,40 @@ class CurriculumConfig(RunConfig):
         if self.replay is not None and not isinstance(self.replay, str):
             raise self.error(f"replay {self.replay!r} is not a run folder")
         return self
+
+    def _maze(self, name: str, value: Any) -> str:
+        """``value``'s canonical maze string; the config's error naming ``name`` otherwise."""
+        try:
+            return MazeSpec.from_string(str(value)).to_string()
+        except ValueError as problem:
+            raise self.error(f"{name} {value!r}: {problem}") from None
+
+    def _maze_list(self, name: str, value: Any, empty: bool = False) -> list[str]:
+        """A list of maze strings, each checked (a comma-separated string is split).
+
+        The strings are kept as given (``config.json`` records what the user
+        wrote; the trainers parse them).
+        """
+        if isinstance(value, str):
+            value = [m.strip() for m in value.split(",") if m.strip()]
+        if not isinstance(value, list) or (not value and not empty):
+            raise self.error(f"{name} {value!r} is not a non-empty list of maze strings")
+        for maze in value:
+            self._maze(name, maze)
+        return list(value)
+
+    def _direct_defaults(self) -> None:
+        """A direct run's agent rule and evaluation mazes: the config's or the trainer's."""
+        if self.agent_rule is None:
+            self.agent_rule = self.agent_rules[0]
+        if self.agent_rule not in self.agent_rules:
+            raise self.error(
+                f"agent_rule {self.agent_rule!r} is not one of {', '.join(self.agent_rules)}"
+            )
+        if self.eval_mazes is None:
+            self.eval_mazes = list(self.default_eval_mazes)
+        if self.agent_rule == "best-eval" and not self.eval_mazes:
+            raise self.error("agent_rule 'best-eval' needs eval_mazes (--eval-mazes A,B,...)")
 
     @classmethod
     def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
@@ -513,6 +595,8 @@ class DecisionLog:
 _BRANCH_FOLDER = re.compile(r"stages/stage-(0|[1-9][0-9]*)/branch-(0|[1-9][0-9]*)")
 #: What a branch in training records when it starts (its ``checkpoint/`` continues only that).
 BRANCH_FILE = "branch.json"
+#: The folder of the final training (``final_training``), relative to the run folder.
+FINAL_FOLDER = "stages/final"
 
 
 def branch_folder(out: Path, stage: int, branch: int) -> Path:
@@ -625,6 +709,12 @@ class CurriculumRun(Run):
         self.curator: Curator | None = None
         self.records: list[StageRecord] = []
         self.final: Candidate | None = None
+        #: The final agent trained on its lineage's mazes (``final_training``), if it was.
+        self.finishing: Candidate | None = None
+        #: Why the loop played no more stages, when a budget ended it.
+        self.ended_because = ""
+        #: What shows the loop's progress while it trains.
+        self.shown: Progress | None = None
         #: The curator's validation mazes and their evaluator, if it has any.
         self.validation: tuple[Evaluator, list[str]] | None = None
 
@@ -739,11 +829,19 @@ class CurriculumRun(Run):
                 finished[candidate.stage, candidate.branch] = candidate
         for candidate in finished.values():
             self._check_against_decisions(candidate, finished)
-        for folder in self._branch_folders():
+        final = self.out / FINAL_FOLDER
+        for folder in [*self._branch_folders(), final]:
             has_result = (folder / "result.json").exists()
+            if folder == final and has_result:
+                self._read_candidate(final, len(self._stages_of(finished)), 0)
             if has_result or (folder / "checkpoint").exists():
                 self.load_learner(folder / ("agent" if has_result else "checkpoint"))
-        return len(finished) or None
+        return len(finished) + (final / "result.json").exists() or None
+
+    @staticmethod
+    def _stages_of(finished: Mapping[tuple[int, int], Candidate]) -> set[int]:
+        """The stages of which ``finished`` holds a branch."""
+        return {stage for stage, _ in finished}
 
     def _branch_folders(self) -> list[Path]:
         """The folders ``stages/stage-<s>/branch-<b>`` (other names are not the loop's)."""
@@ -784,76 +882,103 @@ class CurriculumRun(Run):
                 f" parent's {parent.lineage_steps} plus its env_steps {candidate.env_steps}"
             )
 
-    def train(self, progress_bar: bool) -> None:
+    def train(self, progress: str) -> None:
         """The loop (see the module docstring), skipping what the folder says is done."""
-        from tqdm import tqdm
-
         c = self.config
         if self.replayed and not (self.out / REPLAY_FILE).exists():
             text = "".join(json.dumps(d.to_dict(), sort_keys=True) + "\n" for d in self.replayed)
             write_bytes(self.out / REPLAY_FILE, text.encode("utf-8"))
         self.records = []
         budget_seconds = getattr(c, "budget_seconds", None)
-        with tqdm(
-            total=c.budget_steps if c.budget_steps is not None else budget_seconds,
-            unit="steps" if c.budget_steps is not None else "s",
-            unit_scale=True,
-            disable=not progress_bar,
-            desc=f"{c.regime} {c.curator} seed {c.seed}",
-            dynamic_ncols=True,
-        ) as bar:
-            parent: Candidate | None = None
+        total, unit = (c.budget_steps, "steps") if c.budget_steps else (budget_seconds, "s")
+        desc = f"{c.regime} {c.curator} seed {c.seed}"
+        with Progress(total, unit, desc, mode=progress) as self.shown:
             stage = 0
             while not self._over(stage):
-                if stage == 0:
-                    trivial = [c.curator_context().trivial_maze()]
-                    mazes = self._decide(0, "generate", lambda t=trivial: t)
-                else:
-                    parent = self._select(stage)
-                    history = History(stage=stage, parent=parent, stages=tuple(self.records))
-                    mazes = self._decide(stage, "generate", lambda h=history: self._generate(h))
-                allowance: tuple[int | None, float | None] = (None, None)
-                if c.budget_steps is not None:
-                    used = self._steps()
-                    steps = branch_allowance(
-                        c.budget_steps, used, stage, c.stages, c.branches, c.epochs
-                    )
-                    allowance = (steps, None)
-                if budget_seconds is not None:
-                    spent = self._seconds()
-                    seconds = branch_seconds(
-                        budget_seconds, spent, stage, c.stages, c.branches, c.epochs
-                    )
-                    allowance = (allowance[0], seconds)
-                evaluator = Evaluator(c.robot, rotations(mazes), inputs=False)
-                lineage = self._lineage_mazes()
-                candidates: list[Candidate] = []
-                for branch in range(len(mazes)):
-                    own = mazes[branch]
-                    rehearsed = [maze for maze in lineage if maze != own][: c.rehearsal]
-                    candidate = self._branch(
-                        stage,
-                        branch,
-                        mazes,
-                        [own, *rehearsed],
-                        parent,
-                        allowance,
-                        evaluator,
-                        self._steps(candidates),
-                    )
-                    candidates.append(candidate)
-                    done = self._steps(candidates) if c.budget_steps else self._seconds(candidates)
-                    bar.update(min(done, bar.total) - bar.n)
-                    bar.set_postfix(
-                        stage=stage, branch=branch, success=f"{candidate.success_rate:.2f}"
-                    )
-                self.records.append(StageRecord(stage, tuple(mazes), tuple(candidates)))
+                self.records.append(self._stage(stage))
                 stage += 1
             self.final = self._select(stage)
+            self._final_training(self.final)
+
+    def _stage(self, stage: int) -> StageRecord:
+        """Play ``stage``: its decisions (or the recorded ones), then each of its branches."""
+        c = self.config
+        parent: Candidate | None = None
+        if stage == 0:
+            trivial = [c.curator_context().trivial_maze()]
+            mazes = self._decide(0, "generate", lambda: trivial)
+        else:
+            parent = self._select(stage)
+            history = History(stage=stage, parent=parent, stages=tuple(self.records))
+            mazes = self._decide(stage, "generate", lambda: self._generate(history))
+        allowance = self._allowance(stage)
+        evaluator = Evaluator(c.robot, rotations(mazes), inputs=False)
+        lineage = self._lineage_mazes()
+        candidates: list[Candidate] = []
+        for branch in range(len(mazes)):
+            own = mazes[branch]
+            rehearsed = [maze for maze in lineage if maze != own][: c.rehearsal]
+            steps_before = self._steps(candidates)
+            training = [own, *rehearsed]
+            candidate = self._branch(
+                stage, branch, mazes, training, parent, allowance, evaluator, steps_before
+            )
+            candidates.append(candidate)
+        return StageRecord(stage, tuple(mazes), tuple(candidates))
+
+    def _allowance(self, stage: int) -> tuple[int | None, float | None]:
+        """What each branch of ``stage`` may spend: env steps and/or seconds (``None``: none)."""
+        c = self.config
+        budget_seconds = getattr(c, "budget_seconds", None)
+        steps = seconds = None
+        if c.budget_steps is not None:
+            steps = branch_allowance(
+                c.budget_steps, self._steps(), stage, c.stages, c.branches, c.epochs
+            )
+        if budget_seconds is not None:
+            seconds = branch_seconds(
+                budget_seconds, self._seconds(), stage, c.stages, c.branches, c.epochs
+            )
+        return steps, seconds
 
     def final_agent(self) -> Any:
         assert self.final is not None
-        return self.load_learner(self._branch_folder(self.final) / "agent").agent()
+        return self.load_learner(self._final_folder() / "agent").agent()
+
+    def _final_folder(self) -> Path:
+        """The folder of the agent the run hands over: its final training's or final choice's."""
+        assert self.final is not None
+        if self.finishing is not None:
+            return self.out / FINAL_FOLDER
+        return self._branch_folder(self.final)
+
+    def agent_figures(self) -> dict[str, Any]:
+        assert self.final is not None
+        last = self.finishing or self.final
+        done = [k for record in self.records for k in record.candidates]
+        found = sum(k.env_steps for k in done if (k.stage, k.branch) <= (last.stage, last.branch))
+        rule = f"the curator's final choice ({self.config.curator})"
+        if self.finishing is not None:
+            rule += ", then trained on its lineage's mazes"
+            found += self.finishing.env_steps
+        untrained = last.lineage_steps == 0
+        return {"agent_rule": rule, "agent_steps": found, "agent_untrained": untrained}
+
+    def stop_reason(self) -> str:
+        c = self.config
+        if self.ended_because:
+            return self.ended_because
+        if self.finishing is not None and self.finishing.converged:
+            return (
+                "the final agent converged on its lineage's mazes (every episode optimal) after"
+                f" {self.finishing.env_steps:,} steps of final training"
+            )
+        converged = sum(k.converged for record in self.records for k in record.candidates)
+        played = sum(len(record.candidates) for record in self.records)
+        why = f"every stage played, {converged} of {played} branches converged early"
+        if not c.final_training:
+            why += "; final_training is off"
+        return why
 
     def figures(self) -> dict[str, Any]:
         c = self.config
@@ -892,6 +1017,15 @@ class CurriculumRun(Run):
             "time": self._time_spent(),
             "final_lineage": list(self.final.lineage),
             "final_mazes": list(self.final.mazes),
+            "final_training": None
+            if self.finishing is None
+            else {
+                "mazes": list(self._lineage_mazes()),
+                "env_steps": self.finishing.env_steps,
+                "converged": self.finishing.converged,
+                "success_rate": self.finishing.success_rate,
+                "mean_reward": self.finishing.mean_reward,
+            },
             "curriculum": stages,
         }
 
@@ -968,7 +1102,14 @@ class CurriculumRun(Run):
         allowance = branch_allowance(
             c.budget_steps, self._steps(), stage, c.stages, c.branches, c.epochs
         )
-        return allowance < self.smallest_unit()[0]
+        unit, what = self.smallest_unit()
+        if allowance >= unit:
+            return False
+        self.ended_because = (
+            f"stage {stage}'s branches would be allowed {allowance:,} steps, less than {what}"
+            f" ({unit:,} steps)"
+        )
+        return True
 
     def _lineage_mazes(self) -> list[str]:
         """The own mazes of the selected branches so far, newest first, each once."""
@@ -983,7 +1124,8 @@ class CurriculumRun(Run):
     def _steps(self, current: Sequence[Candidate] = ()) -> int:
         """Env steps of every finished branch (and of ``current``, the stage in progress)."""
         done = sum(k.env_steps for record in self.records for k in record.candidates)
-        return done + sum(k.env_steps for k in current)
+        finishing = self.finishing.env_steps if self.finishing is not None else 0
+        return done + finishing + sum(k.env_steps for k in current)
 
     def _generate(self, history: History) -> list[str]:
         assert self.curator is not None
@@ -1013,17 +1155,21 @@ class CurriculumRun(Run):
     def _seconds(self, current: Sequence[Candidate] = ()) -> float:
         """Seconds of every finished branch (and of ``current``, the stage in progress)."""
         done = sum(k.seconds for record in self.records for k in record.candidates)
-        return done + sum(k.seconds for k in current)
+        finishing = self.finishing.seconds if self.finishing is not None else 0.0
+        return done + finishing + sum(k.seconds for k in current)
 
     def _time_spent(self) -> dict[str, float]:
         """Seconds of every branch by part (training, evaluation...), from ``result.json``."""
+        from amaze.runs.config import read_json_object
+
+        folders = [self._branch_folder(k) for record in self.records for k in record.candidates]
+        if self.finishing is not None:
+            folders.append(self.out / FINAL_FOLDER)
         totals: dict[str, float] = {}
-        for record in self.records:
-            for candidate in record.candidates:
-                path = self._branch_folder(candidate) / "result.json"
-                parts = json.loads(path.read_text(encoding="utf-8")).get("time", {})
-                for part, seconds in parts.items():
-                    totals[part] = round(totals.get(part, 0.0) + float(seconds), 3)
+        for folder in folders:
+            data = read_json_object(folder / "result.json", self.config.error, "branch result")
+            for part, seconds in data.get("time", {}).items():
+                totals[part] = round(totals.get(part, 0.0) + float(seconds), 3)
         return totals
 
     def _select(self, stage: int) -> Candidate:
@@ -1101,8 +1247,14 @@ class CurriculumRun(Run):
             stage = candidate_or_stage
         return branch_folder(self.out, stage, branch)
 
-    def _read_candidate(self, folder: Path) -> Candidate:
-        """The finished branch in ``folder``, its ``result.json`` checked."""
+    def _read_candidate(
+        self, folder: Path, stage: int | None = None, branch: int | None = None
+    ) -> Candidate:
+        """The finished branch in ``folder``, its ``result.json`` checked.
+
+        It must be the branch of the folder's name, or ``stage`` and ``branch``
+        when they are given (the final training's).
+        """
         from amaze.runs.config import read_json_object
 
         path = folder / "result.json"
@@ -1113,13 +1265,46 @@ class CurriculumRun(Run):
             raise self.config.error(
                 f"branch result {str(path)!r} is damaged ({type(problem).__name__}: {problem})"
             ) from None
-        if self._branch_folder(candidate) != folder:
+        expected = self._branch_folder(candidate) == folder
+        if stage is not None:
+            expected = (candidate.stage, candidate.branch) == (stage, branch)
+        if not expected:
             raise self.config.error(
                 f"branch result {str(path)!r} says stage {candidate.stage} branch"
                 f" {candidate.branch}: it is in another branch's folder"
             )
         self.check_config_digest(data.get("config_sha256"), f"branch result {str(path)!r}")
         return candidate
+
+    def _final_training(self, final: Candidate) -> None:
+        """Spend what the stages left of the budget on the final agent, on its lineage's mazes.
+
+        Fixed-stage curricula leave budget unspent when their branches
+        converge early; with ``final_training`` the final choice trains on
+        the own mazes of its whole lineage (4 rotations each), as a branch of
+        its own in ``stages/final`` (resumed like one), and becomes the run's
+        agent. Nothing is done when less than 5 % of a budget is left, or less
+        than the smallest unit of training.
+        """
+        c = self.config
+        budget_seconds = getattr(c, "budget_seconds", None)
+        left_steps = None if c.budget_steps is None else c.budget_steps - self._steps()
+        left_seconds = None if budget_seconds is None else budget_seconds - self._seconds()
+        if not c.final_training:
+            return
+        if left_steps is not None and (
+            left_steps < self.smallest_unit()[0] or left_steps < (1 - SPENT_ENOUGH) * c.budget_steps
+        ):
+            return
+        if left_seconds is not None and left_seconds < (1 - SPENT_ENOUGH) * budget_seconds:
+            return
+        own = final.mazes[0]
+        training = [own, *(maze for maze in self._lineage_mazes() if maze != own)]
+        evaluator = Evaluator(c.robot, rotations(own), inputs=False)
+        self.finishing = self._branch(
+            len(self.records), 0, [own], training, final, (left_steps, left_seconds),
+            evaluator, self._steps(), folder=self.out / FINAL_FOLDER,
+        )  # fmt: skip
 
     def _check_branch_record(self, folder: Path, started: Mapping[str, Any]) -> None:
         """The branch in training in ``folder`` was started as the loop would start it now.
@@ -1158,20 +1343,25 @@ class CurriculumRun(Run):
         allowance: tuple[int | None, float | None],
         evaluator: Evaluator,
         steps_before: int,
+        folder: Path | None = None,
     ) -> Candidate:
         """Train (or finish training) one branch, evaluate it, write its result.
 
         The branch trains on the 4 rotations of each of ``training``: its own
-        maze, ``mazes[branch]``, then the lineage's rehearsed ones.
+        maze, ``mazes[branch]``, then the lineage's rehearsed ones. ``folder``
+        defaults to the branch's (the final training has its own).
         """
         c = self.config
-        folder = self._branch_folder(stage, branch)
+        folder = self._branch_folder(stage, branch) if folder is None else folder
 
         def report(steps: int, done: bool = False) -> None:
             self.branch_progress(BranchProgress(stage, branch, steps, *allowance, done=done))
+            if self.shown is not None:
+                spent = steps_before + steps if c.budget_steps else self._seconds()
+                self.shown.update(spent, stage=stage, branch=branch)
 
         if (folder / "result.json").exists():
-            candidate = self._read_candidate(folder)
+            candidate = self._read_candidate(folder, stage, branch)
             if candidate.mazes != (mazes[branch],) or candidate.stage != stage:
                 raise c.error(
                     f"branch result {str(folder / 'result.json')!r} is of another maze or stage"

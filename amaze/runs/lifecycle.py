@@ -19,10 +19,15 @@ folders"):
   refused (:meth:`Run.check_config_digest`), not trained on. Only the budgets
   (:data:`BUDGET_KEYS`) are left out of the digest: raising one in
   ``config.json`` and resuming extends a run;
-* **finish** (:meth:`Run.finish`): the final agent on the standard evaluation
-  suite (the one evaluation protocol), its trajectories, the trainer's
-  pictures, and ``summary.json`` last: a run folder with a summary is a
-  finished run.
+* **finish** (:meth:`Run.finish`): the final agent written at the top of the
+  folder (:attr:`Run.agent_file`: ``agent.npz`` or ``agent.zip``, the one
+  place of a run's agent) and scored on the standard evaluation suite (the
+  one evaluation protocol), its trajectories, the trainer's pictures, and
+  ``summary.json`` last: a run folder with a summary is a finished run. The
+  summary says which rule chose the agent and when it was found
+  (:meth:`Run.agent_figures`), what share of each budget was spent
+  (``budget_spent``) and, when it reached none of them (less than
+  :data:`SPENT_ENOUGH` of each), why it stopped early (:meth:`Run.stop_reason`).
 
 Every file is written atomically (:mod:`amaze.runs.folder`), so a run killed at
 any moment leaves readable files behind and resumes from its last checkpoint.
@@ -67,6 +72,8 @@ COMMAND_KEYS = {
 }
 #: The ``config.json`` keys a resumed run may find changed: raising a budget extends a run.
 BUDGET_KEYS = frozenset({"budget_steps", "budget_seconds", "max_generations"})
+#: A run that spent less than this share of a budget says why (``stopped_early``).
+SPENT_ENOUGH = 0.95
 #: What the process of a replicate prints (:mod:`amaze.runs.replicates`): it is
 #: opened before the run starts, so a folder holding only it counts as empty.
 LOG_FILE = "log.txt"
@@ -100,6 +107,8 @@ class RunResult:
     summary: dict[str, Any]
     headline: str = ""
     outputs: tuple[str, ...] = ()
+    #: True when a resume found the run finished already (nothing was done).
+    finished_before: bool = False
 
     @property
     def env_steps(self) -> int:
@@ -132,6 +141,8 @@ class Run(ABC):
     checkpoint_files: ClassVar[tuple[str, ...]]
     #: Files a finished run folder shows a user (printed by the command).
     outputs: ClassVar[tuple[str, ...]] = ("summary.json", "progress.csv")
+    #: The file of the run's final agent, at the top of its folder.
+    agent_file: ClassVar[str]
 
     def __init__(self, out: str | os.PathLike, config: RunConfig) -> None:
         self.out = Path(out)
@@ -157,7 +168,7 @@ class Run(ABC):
         """
 
     @abstractmethod
-    def train(self, progress_bar: bool) -> None:
+    def train(self, progress: str) -> None:
         """Spend the budget: the trainer's loop, logging progress and checkpointing."""
 
     @abstractmethod
@@ -167,6 +178,23 @@ class Run(ABC):
     @abstractmethod
     def figures(self) -> dict[str, Any]:
         """The trainer's entries of ``summary.json``: at least ``env_steps`` and ``seconds``."""
+
+    @abstractmethod
+    def save_agent(self, agent: Any, path: Path) -> None:
+        """Write the final agent (from :meth:`final_agent`) to ``path``, an agent file."""
+
+    @abstractmethod
+    def agent_figures(self) -> dict[str, Any]:
+        """How the final agent was chosen: ``agent_rule``, ``agent_steps``, ``agent_untrained``.
+
+        ``agent_steps`` is the env steps spent when the agent was found (it was
+        then the run's latest), ``agent_untrained`` whether it had learnt
+        nothing yet (RL's step-0 model, an initial random population's best).
+        """
+
+    def stop_reason(self) -> str:
+        """Why training ended, in words (the summary's ``stopped_early`` if a budget is left)."""
+        return ""
 
     def trajectory_mazes(self) -> list[tuple[str, str]]:
         """``(file stem, maze)`` of the episodes drawn into ``trajectories/``."""
@@ -196,6 +224,37 @@ class Run(ABC):
             f" input_recognition {'n/a' if recognition is None else f'{recognition:.3f}'}"
         )
 
+    @staticmethod
+    def closing_lines(summary: Mapping[str, Any]) -> list[str]:
+        """What a finished run says besides its headline: its agent, and a budget left unspent."""
+        lines = []
+        if "agent_rule" in summary:
+            found = f"found at {summary['agent_steps']:,} env steps"
+            if summary.get("agent_untrained"):
+                found += ": the untrained agent, no training improved on it"
+            lines.append(f"agent: {summary.get('agent')} (rule {summary['agent_rule']}, {found})")
+        spent = summary.get("budget_spent") or {}
+        if summary.get("stopped_early"):
+            shares = ", ".join(f"{share:.0%} of the {unit} budget" for unit, share in spent.items())
+            lines.append(f"stopped early, at {shares}: {summary['stopped_early']}")
+        return lines
+
+    def _budget_figures(self, summary: Mapping[str, Any]) -> dict[str, Any]:
+        """``budget_spent`` (each budget's share spent) and ``stopped_early`` (why, if below)."""
+        c = self.config
+        spent: dict[str, float] = {}
+        for unit, budget, used in (
+            ("steps", getattr(c, "budget_steps", None), summary.get("env_steps")),
+            ("seconds", getattr(c, "budget_seconds", None), summary.get("seconds")),
+            ("generations", getattr(c, "max_generations", None), summary.get("generations")),
+        ):
+            if budget is not None and used is not None:
+                spent[unit] = round(float(used) / float(budget), 4)
+        figures: dict[str, Any] = {"budget_spent": spent, "stopped_early": None}
+        if spent and max(spent.values()) < SPENT_ENOUGH:  # no budget reached: why stop?
+            figures["stopped_early"] = self.stop_reason() or "the trainer gave no reason"
+        return figures
+
     @cached_property
     def config_digest(self) -> str:
         """The SHA-256 of ``config.json``'s object, budgets left out (hex, of sorted-key JSON)."""
@@ -223,7 +282,7 @@ class Run(ABC):
         config: RunConfig | Mapping[str, Any],
         out: str | os.PathLike,
         *,
-        progress_bar: bool = False,
+        progress: str = "off",
     ) -> RunResult:
         """Start a run as ``config`` says in the folder ``out``, train it and finish it."""
         if not isinstance(config, cls.config_class):
@@ -236,17 +295,19 @@ class Run(ABC):
         path.mkdir(parents=True, exist_ok=True)
         write_json(path / CONFIG_FILE, config.to_dict())
         with frozen_heap():
-            run.train(progress_bar)
+            run.train(progress)
         return run.finish()
 
     @classmethod
-    def resume(cls, out: str | os.PathLike, *, progress_bar: bool = False) -> RunResult:
+    def resume(cls, out: str | os.PathLike, *, progress: str = "off") -> RunResult:
         """Continue the run in ``out`` from its latest checkpoint, then finish it."""
         path = Path(out)
         config = cls.read_config(path)
         cls = cls.run_class_for(config)
         run = cls(path, config)
         error = run.config.error
+        if (path / SUMMARY_FILE).exists():
+            return run.finished_result()
         # Every file is checked before anything in the folder changes.
         rows = run.progress.checked_rows(cls.position_field, error)
         position = run.restore()
@@ -267,12 +328,12 @@ class Run(ABC):
                 )
             run.progress.keep(lambda row: int(row[cls.position_field]) <= position)
         with frozen_heap():
-            run.train(progress_bar)
+            run.train(progress)
         return run.finish()
 
     @classmethod
     def replay(
-        cls, source: str | os.PathLike, out: str | os.PathLike, *, progress_bar: bool = False
+        cls, source: str | os.PathLike, out: str | os.PathLike, *, progress: str = "off"
     ) -> RunResult:
         """A new run in ``out`` with the config of the run in ``source`` and its decisions.
 
@@ -283,7 +344,7 @@ class Run(ABC):
         config = cls.read_config(path)
         run_class = cls.run_class_for(config)
         replayed = run_class.replay_config(path, config)
-        return run_class.fresh(replayed, out, progress_bar=progress_bar)
+        return run_class.fresh(replayed, out, progress=progress)
 
     @classmethod
     def replay_config(cls, source: Path, config: RunConfig) -> RunConfig:
@@ -291,6 +352,18 @@ class Run(ABC):
         raise config.error(
             f"{str(source)!r} holds a run that records no decisions: there is nothing to replay"
         )
+
+    def finished_result(self) -> RunResult:
+        """The result of this run, finished already: read from its folder, nothing changed."""
+        summary = read_json_object(self.out / SUMMARY_FILE, self.config.error, "run summary")
+        try:
+            headline = type(self).headline(summary)
+        except (KeyError, TypeError, ValueError) as problem:
+            raise self.config.error(
+                f"run summary {str(self.out / SUMMARY_FILE)!r} is damaged ({problem!r})"
+            ) from None
+        outputs = tuple(name for name in self.outputs if any(self.out.glob(name.rstrip("/"))))
+        return RunResult(self.out, None, summary, headline, outputs, finished_before=True)
 
     @staticmethod
     def _check_new_folder(path: Path, error: type[ValueError]) -> None:
@@ -338,9 +411,12 @@ class Run(ABC):
         from amaze.evaluation.protocol import Evaluator
 
         agent = self.final_agent()
+        self.save_agent(agent, self.out / self.agent_file)
         robot = self.config.robot
         summary = Evaluator(robot).evaluate(agent).summary()
         summary.update(self.figures())
+        summary.update(self.agent_figures(), agent=self.agent_file)
+        summary.update(self._budget_figures(summary))
         for stem, maze in self.trajectory_mazes():
             _, trajectory = record_episode(maze, robot, agent)
             path = self.out / "trajectories" / f"{stem}.png"

@@ -7,7 +7,10 @@ interpreter, random generators and numba/torch thread pools, so replicates
 cannot disturb one another and a crash stays in its folder. Each worker gets
 an equal share of the cores (``NUMBA_NUM_THREADS``, ``OMP_NUM_THREADS``) so
 ``K`` workers do not oversubscribe the machine. A replicate's output goes to
-``OUT/seed-<s>/log.txt``.
+``OUT/seed-<s>/log.txt``, with a progress line at least every 30 s
+(:mod:`amaze.runs.progress`). When all have ended, a table gives each seed's
+figures (suite success, R̄, input recognition, env steps) and their median
+and interquartile range (:func:`replicates_table`).
 
 With ``--backend ray`` each replicate is a Ray task of one CPU
 (:mod:`amaze.runs.ray_tasks`), all of them at once by default (Ray queues
@@ -37,7 +40,7 @@ from amaze.runs.launchers import (
     worker_environment,
     worker_threads,
 )
-from amaze.runs.lifecycle import CONFIG_FILE, LOG_FILE
+from amaze.runs.lifecycle import CONFIG_FILE, LOG_FILE, SUMMARY_FILE
 from amaze.runs.ray_tasks import RayLauncher
 from amaze.validation import check_integer
 
@@ -111,12 +114,13 @@ def plan_replicates(
             f"--seed {first_seed} with --replicates {count} reaches seed"
             f" {first_seed + count - 1}, above {MAX_SEED}"
         )
-    base = strip_options(argv, ("--replicates", "--workers", "--seed", "--out", *NOT_PASSED_ON))
+    mine = ("--replicates", "--workers", "--seed", "--out", "--progress", "--no-progress")
+    base = strip_options(argv, (*mine, *NOT_PASSED_ON))
     plan = []
     for seed in range(first_seed, first_seed + count):
         folder = Path(out) / f"seed-{seed}"
         command = [sys.executable, "-m", module, *base, "--seed", str(seed), "--out", str(folder)]
-        resume = [sys.executable, "-m", module, "--resume", str(folder), "--no-progress"]
+        resume = [sys.executable, "-m", module, "--resume", str(folder)]
         plan.append(Replicate(seed, folder, command, resume))
     return plan
 
@@ -188,11 +192,73 @@ def replicate_command(
         )
     seed = 0 if first_seed is None else first_seed
     if backend != "ray":
-        return run_replicates(
-            plan_replicates(module, [*argv, "--no-progress"], seed, count, out), workers
+        plan = plan_replicates(module, argv, seed, count, out)
+        status = run_replicates(plan, workers)
+    else:
+        # every node reads the command lines: their paths must not depend on its folder
+        plan = plan_replicates(module, argv, seed, count, Path(out).absolute())
+        if workers is not None:
+            check_integer("--workers", workers, minimum=1, error=UsageError)
+        status = run_replicates(plan, workers, RayLauncher.connect(address))
+    print(replicates_table(plan))
+    return status
+
+
+#: The figures of a replicate's ``summary.json`` the closing table shows: (key, heading).
+TABLE_FIGURES = (
+    ("success_rate", "success"),
+    ("normalized_reward", "R̄"),
+    ("input_recognition", "inputs"),
+    ("env_steps", "env steps"),
+)
+
+
+def replicates_table(plan: Sequence[Replicate]) -> str:
+    """Each replicate's figures from its ``summary.json``, then their median and IQR.
+
+    A replicate without a readable summary (failed, or interrupted) shows
+    as such and is left out of the statistics.
+    """
+    import numpy as np
+
+    from amaze.runs.config import read_json_object
+
+    rows, values = [], {key: [] for key, _ in TABLE_FIGURES}
+    for replicate in plan:
+        try:
+            summary = read_json_object(replicate.out / SUMMARY_FILE, UsageError, "summary")
+        except UsageError:
+            rows.append([f"seed {replicate.seed}", "no summary (see its log.txt)"])
+            continue
+        cells = [f"seed {replicate.seed}"]
+        for key, _ in TABLE_FIGURES:
+            value = summary.get(key)
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            cells.append(_cell(key, value) if number else "n/a")
+            if number:
+                values[key].append(float(value))
+        rows.append(cells)
+    for name, stat in (("median", np.median), ("IQR", _iqr)):
+        rows.append(
+            [name, *(_cell(k, stat(values[k])) if values[k] else "n/a" for k, _ in TABLE_FIGURES)]
         )
-    # every node reads the command lines: their paths must not depend on its folder
-    plan = plan_replicates(module, [*argv, "--no-progress"], seed, count, Path(out).absolute())
-    if workers is not None:
-        check_integer("--workers", workers, minimum=1, error=UsageError)
-    return run_replicates(plan, workers, RayLauncher.connect(address))
+    header = ["replicate", *(heading for _, heading in TABLE_FIGURES)]
+    widths = [
+        max(len(str(row[i])) for row in [header, *rows] if i < len(row)) for i in range(len(header))
+    ]
+    lines = [
+        "  ".join(str(cell).rjust(widths[i]) for i, cell in enumerate(row))
+        for row in [header, *rows]
+    ]
+    return "\n".join(lines)
+
+
+def _iqr(values: Sequence[float]) -> float:
+    import numpy as np
+
+    low, high = np.percentile(values, [25, 75])
+    return float(high - low)
+
+
+def _cell(key: str, value: float) -> str:
+    return f"{value:,.0f}" if key == "env_steps" else f"{value:.3f}"

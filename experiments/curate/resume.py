@@ -48,7 +48,7 @@ def check_resume(base: type[CurriculumRun], out: Path) -> None:
             log = self.progress
             self.progress = _UnchangedLog(log.path, log.fields, log.text_fields)
 
-        def train(self, progress_bar: bool) -> None:
+        def train(self, progress: str) -> None:
             raise _Checked
 
     try:

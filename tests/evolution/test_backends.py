@@ -33,7 +33,7 @@ from evolution.learner import EvolutionLearner
 from evolution.population import PopulationEvaluator, PopulationResult
 
 MAZES = ["M0_5x5_U", "M1_6x6_C1", "M2_5x5_l.5_L.25"]
-ROTATED = ["M0_5x5_U", "M0_5x5_U_R90", "M1_6x6_C1", "M1_6x6_C1_R180"]
+ROTATED = ["M0_5x5_U", "M0_5x5_U_R", "M1_6x6_C1", "M1_6x6_C1_R"]
 
 
 def _population(algo: str, size: int, seed: int = 0):
@@ -224,8 +224,8 @@ def test_a_run_on_ray_reaches_the_local_champion(
         tmp_path / "ray", "--backend", "ray", "--address", address, "--actors", "2", regime=regime
     )
     local, ray_champion = (
-        read_agent(tmp_path / "local" / "champion.npz"),
-        read_agent(tmp_path / "ray" / "champion.npz"),
+        read_agent(tmp_path / "local" / "agent.npz"),
+        read_agent(tmp_path / "ray" / "agent.npz"),
     )
     assert local[0].keys() == ray_champion[0].keys()
     for name in local[0]:
@@ -304,7 +304,7 @@ def test_a_run_whose_actor_is_killed_ends_as_the_local_run(ray_cluster, tmp_path
         killer.join()
         assert backend.actor_pids()[1] != victim  # it was killed mid-run, and restarted
     assert _progress(tmp_path / "local") == _progress(tmp_path / "ray")
-    local = read_agent(tmp_path / "local" / "champion.npz")[0]
-    distributed = read_agent(tmp_path / "ray" / "champion.npz")[0]
+    local = read_agent(tmp_path / "local" / "agent.npz")[0]
+    distributed = read_agent(tmp_path / "ray" / "agent.npz")[0]
     for name in local:
         np.testing.assert_array_equal(local[name], distributed[name])

@@ -150,9 +150,9 @@ def test_bad_algorithm_options_fail_before_anything_is_written(
 @pytest.mark.parametrize(
     ("overrides", "bad"),
     [
-        ({"max_generations": 5}, "max_generations 5 applies to the direct regime"),
+        ({"max_generations": 5}, "max_generations .* 5 has no effect in the edhucat regime"),
         ({"budget_steps": None}, "needs budget_steps"),
-        ({"mazes": ["M1_5x5_C1"]}, "mazes 'M1_5x5_C1' apply to the direct regime"),
+        ({"mazes": ["M1_5x5_C1"]}, r"mazes .* \['M1_5x5_C1'\] has no effect"),
     ],
 )
 def test_curriculum_config_refusals(overrides: dict, bad: str) -> None:
@@ -265,3 +265,26 @@ def test_a_damaged_finished_learner_is_refused_before_training_goes_on(
         capsys,
     )
     assert "stage-0/branch-0/agent/learner.npz" in line and "damaged" in line
+
+
+def test_the_run_agent_is_at_the_top_and_amaze_evaluate_scores_it(
+    finished: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from amaze.cli.main import main as amaze_main
+    from amaze.evaluation.protocol import evaluate
+
+    summary = json.loads((finished / "summary.json").read_text())
+    assert summary["agent"] == "agent.npz" and summary["agent_rule"].startswith("the curator's")
+    mazes = ["M1_6x6_C1", "M2_6x6_C1", "M3_6x6_U"]
+    assert amaze_main(["evaluate", str(finished / "agent.npz"), *mazes, "--json"]) == 0
+    scored = json.loads(capsys.readouterr().out)
+    python = evaluate(load_agent(finished / "agent.npz"), "DD", mazes, rotations=4)
+    assert scored["episodes"] == 12 == len(python.episodes)
+    assert scored["success_rate"] == python.summary()["success_rate"]
+    assert scored["normalized_reward"] == python.summary()["normalized_reward"]
+    # another file of the run folder, given as an agent, names the run's agent
+    learner = finished / "stages/stage-0/branch-0/agent/learner.npz"
+    for path in (learner, finished / "progress.csv", finished / "config.json"):
+        assert amaze_main(["run", "M1_6x6_C1", "--controller", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert f"the agent of the run '{finished}' is '{finished / 'agent.npz'}'" in err, err

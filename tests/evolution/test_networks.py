@@ -206,7 +206,9 @@ def test_parameter_counts(spec, n_inputs, n_outputs, n_params):
 def test_spec_is_canonical_and_round_trips():
     spec = NetworkSpec("H15", [16, 8], "relu")
     assert spec.robot == "CD15" and spec.hidden == (16, 8) and spec.pool == 5
-    assert NetworkSpec("D11").robot == "DD" and NetworkSpec("DD").pool is None
+    assert NetworkSpec("D").robot == "DD" and NetworkSpec("DD").pool is None
+    with pytest.raises(ValueError, match="takes no vision size"):
+        NetworkSpec("D11")
     for item in (spec, NetworkSpec("DD"), NetworkSpec("CC11", (4,), "sigmoid", pool=3)):
         data = json.loads(json.dumps(item.to_dict()))
         assert NetworkSpec.from_dict(data) == item

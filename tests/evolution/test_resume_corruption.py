@@ -110,11 +110,6 @@ CASES = {
     "checkpoint wrong type": ("checkpoints/state.npz", _foreign, "does not hold a _State"),
     "checkpoint old version": ("checkpoints/state.npz", _old_version, "version 1"),
     "checkpoint a pickle": ("checkpoints/state.npz", _pickled, "is a pickle"),
-    # champion.npz
-    "champion empty": ("champion.npz", write(b""), "champion.npz"),
-    "champion truncated": ("champion.npz", truncate, "champion.npz"),
-    "champion random bytes": ("champion.npz", write(RANDOM), "champion.npz"),
-    "champion directory": ("champion.npz", directory, "champion.npz"),
 }
 
 
@@ -151,21 +146,11 @@ def test_an_intact_folder_resumes(finished_run: Path, tmp_path: Path) -> None:
     assert EvolveConfig.from_dict(json.loads((out / "config.json").read_text())).algo == "cmaes"
 
 
-def test_a_lost_champion_is_written_again_from_the_checkpoint(
-    finished_run: Path, tmp_path: Path
-) -> None:
-    out = tmp_path / "run"
-    shutil.copytree(finished_run, out)
-    (out / "champion.npz").unlink()
-    assert main(["--resume", str(out), "--no-progress"]) == 0
-    assert (out / "champion.npz").stat().st_size > 0
-
-
 @pytest.mark.parametrize(
     ("content", "words"),
     [
         ({"progress.csv": "generation,steps\n"}, "not empty and holds no run"),
-        ({"champion.npz": "old"}, "not empty and holds no run"),
+        ({"agent.npz": "old"}, "not empty and holds no run"),
     ],
 )
 def test_a_folder_that_is_not_a_run_is_never_written_over(

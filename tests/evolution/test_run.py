@@ -51,7 +51,7 @@ def _without_time(rows: list[dict[str, str]]) -> list[dict[str, str]]:
 def test_run_folder(tmp_path: Path, algo: str) -> None:
     out = tmp_path / "run"
     result = evolve(_config(algo), out)
-    for name in ("config.json", "progress.csv", "champion.npz", "summary.json", "fitness.png"):
+    for name in ("config.json", "progress.csv", "agent.npz", "summary.json", "fitness.png"):
         assert (out / name).stat().st_size > 0, name
     state = read_checkpoint(
         out / "checkpoints" / "state.npz", evolution_codec(_State), EvolutionConfigError, object
@@ -70,11 +70,12 @@ def test_run_folder(tmp_path: Path, algo: str) -> None:
     for key in ("success_rate", "normalized_reward", "input_recognition", "env_steps", "seconds"):
         assert key in summary
     assert summary["env_steps"] == result.env_steps and summary["generations"] == 4
-    # the champion file is a self-contained agent whose training fitness is recorded
-    _, metadata = read_agent(out / "champion.npz")
+    # the agent file is a self-contained agent whose training fitness is recorded
+    assert summary["agent"] == "agent.npz" and summary["agent_rule"] == "best-fitness"
+    _, metadata = read_agent(out / "agent.npz")
     assert metadata["fitness"] == pytest.approx(result.summary["champion_fitness"])
     assert metadata["mazes"] == SMALL_MAZES and metadata["algorithm"] == algo
-    assert load_agent(out / "champion.npz").robot.to_string() == "DD"
+    assert load_agent(out / "agent.npz").robot.to_string() == "DD"
 
 
 def test_seconds_budget(tmp_path: Path) -> None:
@@ -127,7 +128,8 @@ def test_cli_with_a_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert main([*argv, "--config", str(config), "--out", str(tmp_path / "r")]) == 0
     assert "run folder" in capsys.readouterr().out
     saved = EvolveConfig.from_dict(json.loads((tmp_path / "r" / "config.json").read_text()))
-    assert saved.algorithm == {"population_size": 12} and saved.max_generations == 2
+    assert saved.algorithm["population_size"] == 12 and saved.max_generations == 2
+    assert saved.algorithm["tournament_size"] == 2  # config.json records every option used
 
 
 def _kill_when(process: subprocess.Popen, out: Path, generations: int) -> None:
@@ -169,8 +171,8 @@ def test_resume_after_a_kill_reaches_the_same_champion(tmp_path: Path, algo: str
         resumed.summary["champion_fitness"] == whole.summary["champion_fitness"]
         and resumed.env_steps == whole.env_steps
     )
-    a, _ = read_agent(out / "champion.npz")
-    b, _ = read_agent(tmp_path / "whole" / "champion.npz")
+    a, _ = read_agent(out / "agent.npz")
+    b, _ = read_agent(tmp_path / "whole" / "agent.npz")
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["success_rate"] == whole.summary["success_rate"]
@@ -235,3 +237,49 @@ def test_a_run_of_the_other_trainer_is_named_with_its_command(
     assert "holds a run of amaze-train" in capsys.readouterr().err
     assert main(["--replay", str(tmp_path), "--out", str(tmp_path / "new")]) == 2
     assert "use amaze-train for it" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("sent", "status", "words"),
+    [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")],
+)
+def test_an_interrupted_run_says_what_is_saved_and_how_to_resume(
+    tmp_path: Path, sent: int, status: int, words: str
+) -> None:
+    out = tmp_path / "run"
+    config = _config("cmaes", max_generations=None, budget_seconds=120)
+    (tmp_path / "config.json").write_text(json.dumps(config))
+    command = [sys.executable, "-m", "evolution.cli", "--config", str(tmp_path / "config.json")]
+    process = subprocess.Popen(
+        [*command, "--out", str(out), "--checkpoint-seconds", "0"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not (out / "checkpoints" / "state.npz").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    process.send_signal(sent)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == status
+    assert stderr.strip().splitlines() == [
+        f"{words}{' (SIGTERM)' if sent == signal.SIGTERM else ''}: {out} keeps what its last"
+        f" checkpoint saved; resume with: amaze-evolve --resume {out}"
+    ]
+    # not a terminal: plain progress lines on standard output
+    assert "cmaes direct seed 0: 0% of 120 s; 0.0s elapsed; started" in stdout.replace(
+        "0.1s", "0.0s"
+    )
+
+
+def test_resuming_a_finished_run_says_so_and_changes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    evolve(_config("cmaes"), out)
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert main(["--resume", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert f"{out} holds a finished run (its summary.json): nothing was changed" in printed
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before

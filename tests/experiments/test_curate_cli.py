@@ -101,7 +101,7 @@ def killed_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     # the branches were trained under that config: they record its digest
     digest = EvolutionRun(out, EvolutionRun.read_config(out)).config_digest
     for name in ("result.json", "branch.json"):
-        for path in out.glob(f"stages/*/*/{name}"):
+        for path in out.glob(f"stages/**/{name}"):
             _set(path, config_sha256=digest)
     return out
 

@@ -59,8 +59,8 @@ def deterministic(folder: StudyFolder, study: Study) -> list[dict[str, Any]]:
 def test_a_study_on_ray_gives_the_results_of_a_local_one(tmp_path: Path, ray_cluster) -> None:
     study = parse_study(STUDY)
     local, distributed = StudyFolder(tmp_path / "local"), StudyFolder(tmp_path / "ray")
-    assert run_study(study, local.out, workers=2, progress_bar=False) == 0
-    assert run_study(study, distributed.out, progress_bar=False, backend="ray") == 0
+    assert run_study(study, local.out, workers=2, progress="off") == 0
+    assert run_study(study, distributed.out, progress="off", backend="ray") == 0
     assert deterministic(distributed, study) == deterministic(local, study)
     _, statuses = study_status(distributed.out)
     assert [s.state for s in statuses] == ["done", "done"]
@@ -80,11 +80,11 @@ def test_a_run_whose_ray_worker_is_killed_resumes_from_its_checkpoint(
     study = parse_study(LONG_STUDY)
     (run,) = study.runs
     local, distributed = StudyFolder(tmp_path / "local"), StudyFolder(tmp_path / "ray")
-    assert run_study(study, local.out, workers=1, progress_bar=False) == 0
+    assert run_study(study, local.out, workers=1, progress="off") == 0
     statuses: list[int] = []
     runner = threading.Thread(
         target=lambda: statuses.append(
-            run_study(study, distributed.out, progress_bar=False, backend="ray")
+            run_study(study, distributed.out, progress="off", backend="ray")
         )
     )
     runner.start()

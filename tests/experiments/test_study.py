@@ -49,6 +49,7 @@ algorithm = "ppo"
     assert cma["algorithm"]["population_size"] == 12
     assert cma["budget_steps"] == 50_000 and cma.get("budget_seconds") is None
     assert "stages" not in cma or cma["stages"] is None  # the direct regime has none
+    assert cma["target"] != "M3_8x8_C1"  # options.all gives each run what acts in its regime
 
 
 def test_several_robots_make_conditions_of_their_own() -> None:

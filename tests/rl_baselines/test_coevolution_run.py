@@ -39,7 +39,7 @@ def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_a_coevolution_run_writes_its_folder(finished: Path) -> None:
-    for name in ("progress.csv", "mazes.csv", "population.png", "champion.zip", "summary.json"):
+    for name in ("progress.csv", "mazes.csv", "population.png", "agent.zip", "summary.json"):
         assert (finished / name).stat().st_size > 0, name
     assert any((finished / "tensorboard").rglob("events.out.tfevents.*"))
     rows = _rows(finished, "progress.csv")

@@ -74,7 +74,7 @@ def test_an_edhucat_run_writes_the_curriculum_folder(a2c_run: Path) -> None:
         assert not (folder / "checkpoint").exists()
     summary = json.loads((out / "summary.json").read_text())
     assert summary["algo"] == "a2c" and summary["curator"] == "random"
-    assert summary["hyperparameters_used"] == {"n_steps": 5}
+    assert summary["hyperparameters_used"]["n_steps"] == 5
     assert len(summary["curriculum"]) == 2 and len(summary["final_lineage"]) == 2
     # stage 0: 7 rollouts of 20 within 600 // 4; stage 1: 11 within (600 - 140) // 2
     assert [int(r["steps"]) for r in _rows(out)] == [140, 360, 580]
@@ -99,7 +99,7 @@ def test_an_edhucat_run_on_seconds_alone_shares_them_between_stages_and_branches
     config = json.loads((out / "config.json").read_text())
     assert config["budget_steps"] is None and config["budget_seconds"] == 4.0
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["budget_seconds"] == 4.0 and summary["hyperparameters_used"] == {"n_steps": 5}
+    assert summary["budget_seconds"] == 4.0 and summary["hyperparameters_used"]["n_steps"] == 5
     results = {
         str(path.parent.relative_to(out / "stages")): json.loads(path.read_text())
         for path in sorted(out.glob("stages/*/branch-*/result.json"))
@@ -125,8 +125,11 @@ def test_ppo_fits_its_rollout_to_a_tiny_budget(tmp_path: Path) -> None:
     assert main([*argv, "--no-tensorboard", "--no-progress", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     # 2000 // 4 = 500 steps per branch: 64 steps x 4 environments (256) fits, 128 x 4 does not
-    assert summary["hyperparameters_used"] == {"n_steps": 64, "batch_size": 64}
-    assert json.loads((out / "config.json").read_text())["hyperparameters"] == {}
+    used = summary["hyperparameters_used"]
+    assert (used["n_steps"], used["batch_size"]) == (64, 64)
+    # config.json records every hyperparameter used, SB3's defaults and the fitted rollout
+    recorded = json.loads((out / "config.json").read_text())["hyperparameters"]
+    assert recorded == used and recorded["learning_rate"] == 3e-4
     assert int(_rows(out)[0]["steps"]) == 256
     assert summary["env_steps"] <= 2000 and not (out / "tensorboard").exists()
 

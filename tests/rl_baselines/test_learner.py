@@ -242,7 +242,10 @@ def test_a_session_saved_before_seconds_budgets_continues(tmp_path: Path) -> Non
 
 def test_fitted_rollouts_fit_the_first_allowance() -> None:
     def fitted(**fields) -> dict:
-        return fitted_hyperparameters(TrainConfig.from_dict({"regime": "edhucat", **fields}))
+        """The rollout fitted (and the hyperparameters given), of all those recorded."""
+        used = fitted_hyperparameters(TrainConfig.from_dict({"regime": "edhucat", **fields}))
+        shown = ("n_steps", "batch_size", *fields.get("hyperparameters", {}))
+        return {name: used[name] for name in shown if name in used}
 
     common = {"curator": "random", "stages": 3, "branches": 2, "budget_steps": 30_000}
     assert fitted(algo="ppo", **common) == {"n_steps": 1024, "batch_size": 64}

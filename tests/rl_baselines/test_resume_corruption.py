@@ -73,12 +73,12 @@ CASES = {
     "state wrong best": (STATE, edit_json(best="good"), "best 'good'"),
     "state wrong converged": (STATE, edit_json(converged="no"), "converged 'no'"),
     "state wrong last evaluation": (STATE, edit_json(last_eval_steps=-2), "last_eval_steps -2"),
-    "champion empty": ("champion.zip", write(b""), "champion.zip"),
-    "champion truncated": ("champion.zip", truncate, "champion.zip"),
-    "champion random bytes": ("champion.zip", write(RANDOM), "champion.zip"),
-    "champion directory": ("champion.zip", directory, "champion.zip"),
-    "champion sidecar missing": ("champion.json", missing, "champion.json"),
-    "champion sidecar wrong algo": ("champion.json", edit_json(algo="dqn"), "dqn"),
+    "champion empty": ("checkpoints/champion.zip", write(b""), "champion.zip"),
+    "champion truncated": ("checkpoints/champion.zip", truncate, "champion.zip"),
+    "champion random bytes": ("checkpoints/champion.zip", write(RANDOM), "champion.zip"),
+    "champion directory": ("checkpoints/champion.zip", directory, "champion.zip"),
+    "champion sidecar missing": ("checkpoints/champion.json", missing, "champion.json"),
+    "champion sidecar wrong algo": ("checkpoints/champion.json", edit_json(algo="dqn"), "dqn"),
 }
 
 

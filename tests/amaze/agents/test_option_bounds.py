@@ -63,7 +63,8 @@ def test_vision_bound_applies_to_the_constructor_and_keeps_65() -> None:
     with pytest.raises(RobotStringError, match="vision 67"):
         Robot("C", "D", 67)
     assert Robot.from_string("H65").vision == 65
-    assert Robot.from_string("D10001").to_string() == "DD"  # ignored for discrete inputs
+    with pytest.raises(RobotStringError, match=r"'D10001': DD .* takes no vision size"):
+        Robot.from_string("D10001")  # discrete inputs take no vision
 
 
 @pytest.mark.parametrize(

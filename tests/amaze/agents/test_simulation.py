@@ -149,7 +149,6 @@ def test_bad_discrete_actions(action):
     [
         ("DD", "DD"),
         ("D", "DD"),
-        ("D11", "DD"),
         ("H", "CD15"),
         ("H11", "CD11"),
         ("CD15", "CD15"),

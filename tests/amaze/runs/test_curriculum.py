@@ -272,6 +272,7 @@ def test_a_damaged_decisions_file_is_refused_by_name_and_nothing_changes(
 def test_a_damaged_branch_result_is_refused_by_name(tmp_path: Path, finished: Path) -> None:
     out = tmp_path / "run"
     _copy(finished, out)
+    (out / "summary.json").unlink()
     result = out / "stages/stage-1/branch-1/result.json"
     data = json.loads(result.read_text())
     del data["lineage"]
@@ -294,8 +295,14 @@ def test_resume_of_a_finished_run_redoes_nothing(tmp_path: Path, finished: Path)
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"regime": "direct", "curator": "careful"}, "curator 'careful' is for the curriculum"),
-        ({"regime": "direct", "curator": None, "stages": 3}, "stages 3 is for the curriculum"),
+        (
+            {"regime": "direct", "curator": "careful"},
+            "curator .* 'careful' has no effect in the direct regime",
+        ),
+        (
+            {"regime": "direct", "curator": None, "stages": 3},
+            "stages .* 3 has no effect in the direct regime",
+        ),
         ({"regime": "interpolation", "curator": "random"}, "interpolation regime's curator"),
         ({"curator": "nobody"}, "unknown curator 'nobody' .*careful"),
         ({"stages": -1}, "stages"),
@@ -305,14 +312,17 @@ def test_resume_of_a_finished_run_redoes_nothing(tmp_path: Path, finished: Path)
         ({"stages": 0, "epochs": 0}, "epochs"),
         (
             {"regime": "direct", "curator": None, "stages": None, "branches": None, "rehearsal": 2},
-            "rehearsal 2 is for",
+            "rehearsal .* 2 has no effect",
         ),
         ({"branches": 65}, "branches"),
         ({"target": "M5_8x8_Q"}, "target 'M5_8x8_Q'"),
         ({"curator_options": [1]}, "curator_options"),
         ({"regime": "curricular"}, "regime 'curricular'"),
         ({"regime": "coevolution"}, "regime 'coevolution' is not run by this trainer"),
-        ({"coevolution": {"batch": 2}}, "coevolution options .* are for the coevolution regime"),
+        (
+            {"coevolution": {"batch": 2}},
+            "coevolution .* has no effect in the edhucat regime: it is for coevolution",
+        ),
     ],
 )
 def test_bad_regime_fields_are_refused_naming_the_value(changes: dict, message: str) -> None:
@@ -418,7 +428,8 @@ class TimedRun(ToyRun):
 
 def test_a_seconds_budget_is_shared_like_steps_from_what_branches_took(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    result = TimedRun.fresh({**CONFIG, "budget_steps": None, "budget_seconds": 4.0}, out)
+    config = {**CONFIG, "budget_steps": None, "budget_seconds": 4.0, "final_training": False}
+    result = TimedRun.fresh(config, out)
     assert result.summary["budget_seconds"] == 4.0
     spent = 0.0
     for stage in range(3):
@@ -563,3 +574,48 @@ def test_when_a_curriculum_is_over() -> None:
     with pytest.raises(ValueError, match="stage 400"):
         branch_allowance(100, 0, MAX_OPEN_STAGES, 0, 2)
     assert branch_allowance(1000, 100, MAX_OPEN_STAGES - 1, 0, 2) == 450  # the last shares all
+
+
+class _EarlyLearner(ToyLearner):
+    """Converges after half its allowance, leaving the rest of the budget unspent."""
+
+    def train(self, mazes, budget_steps, *, budget_seconds=None, checkpoint=None, progress=None):
+        outcome = super().train(mazes, budget_steps // 2, checkpoint=checkpoint, progress=progress)
+        return type(outcome)(outcome.env_steps, outcome.seconds, True)
+
+    def branch(self, seed):
+        return _EarlyLearner(seed, self.trained)
+
+
+class _EarlyRun(ToyRun):
+    def new_learner(self, seed):
+        return _EarlyLearner(seed)
+
+    def load_learner(self, folder):
+        toy = super().load_learner(folder)
+        return _EarlyLearner(toy.seed, toy.trained, toy.session)
+
+
+def test_final_training_spends_what_the_stages_left_on_the_lineages_mazes(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / "run"
+    summary = _EarlyRun.fresh(CONFIG, out).summary
+    stages = sum(s["env_steps"] for s in summary["curriculum"])
+    assert stages < 6000 * 0.7  # every branch converged on half its allowance
+    final = summary["final_training"]
+    lineage = summary["final_mazes"] + [
+        m for m in final["mazes"] if m not in summary["final_mazes"]
+    ]
+    assert final["mazes"] == lineage and len(final["mazes"]) == 3  # one maze a stage
+    trained = json.loads((out / "stages/final/agent/toy.json").read_text())
+    assert final["env_steps"] == (6000 - stages) // 2  # it converged too, on half of what was left
+    assert summary["env_steps"] == stages + final["env_steps"]
+    assert summary["agent_rule"].endswith("then trained on its lineage's mazes")
+    assert json.loads((out / "agent.json").read_text())["seed"] == trained["seed"] % 1000
+    assert summary["stopped_early"].startswith("the final agent converged on its lineage's mazes")
+    off = _EarlyRun.fresh({**CONFIG, "final_training": False}, tmp_path / "off").summary
+    assert off["final_training"] is None and off["env_steps"] == stages
+    assert "final_training is off" in off["stopped_early"]
+    (out / "summary.json").unlink()  # resumed after its final training: nothing is redone
+    assert _EarlyRun.resume(out).summary["env_steps"] == summary["env_steps"]

@@ -75,7 +75,7 @@ class CountingRun(Run):
         self.step, self.total = saved["step"], saved["total"]
         return self.step
 
-    def train(self, progress_bar: bool) -> None:
+    def train(self, progress: str) -> None:
         while self.step < self.config.steps:
             self.step += 1
             self.total += self.config.factor
@@ -92,6 +92,14 @@ class CountingRun(Run):
 
     def figures(self) -> dict[str, Any]:
         return {"env_steps": self.step, "seconds": 0.0, "total": self.total}
+
+    agent_file = "agent.json"
+
+    def save_agent(self, agent: RandomController, path: Path) -> None:
+        write_json(path, {"controller": "random", "seed": agent.seed})
+
+    def agent_figures(self) -> dict[str, Any]:
+        return {"agent_rule": "final", "agent_steps": self.step, "agent_untrained": False}
 
     def trajectory_mazes(self) -> list[tuple[str, str]]:
         return [(f"maze-{i}", maze) for i, maze in enumerate(self.config.mazes)]
@@ -209,7 +217,9 @@ def test_config_fields_drive_the_command_line(tmp_path: Path, capsys) -> None:
     assert saved["steps"] == 3 and saved["factor"] == 2.0 and saved["verbose"] is True
     assert saved["mazes"] == ["M0_5x5_U", "M1_5x5_U"]
     printed = capsys.readouterr().out.splitlines()
-    assert printed[0].startswith("3 env steps") and printed[1].startswith(f"run folder: {out}")
+    assert printed[0].startswith("3 env steps")
+    assert printed[1] == "agent: agent.json (rule final, found at 3 env steps)"
+    assert printed[-1].startswith(f"run folder: {out}")
 
 
 def test_a_config_file_is_a_whole_config_or_the_options(tmp_path: Path) -> None:
@@ -290,9 +300,9 @@ class _FreezeWatchingRun(CountingRun):
 
     frozen: ClassVar[list[int]] = []
 
-    def train(self, progress_bar: bool) -> None:
+    def train(self, progress: str) -> None:
         type(self).frozen.append(gc.get_freeze_count())
-        super().train(progress_bar)
+        super().train(progress)
 
 
 def test_training_runs_with_the_set_up_frozen_out_of_the_collector(
@@ -313,3 +323,26 @@ def test_training_runs_with_the_set_up_frozen_out_of_the_collector(
         garbage.append(garbage)  # a cycle made meanwhile is still collected
         del garbage
         assert gc.collect() >= 1
+
+
+def test_progress_without_a_terminal_is_a_plain_line_at_least_every_period() -> None:
+    import io
+    import time
+
+    from amaze.runs.progress import Progress
+
+    stream = io.StringIO()
+    with Progress(1000, "steps", "demo", mode="lines", every=0.05, stream=stream) as shown:
+        for done in range(0, 1001, 100):
+            shown.update(done, best="0.5")
+            time.sleep(0.02)
+    lines = stream.getvalue().splitlines()
+    assert lines[0].endswith("demo: 0% of 1,000 steps; 0.0s elapsed; started")
+    assert lines[-1].split("] ")[1].startswith("demo: 100% of 1,000 steps;")
+    assert lines[-1].endswith("done; best 0.5")
+    assert 3 <= len(lines) <= 8  # about one a period between the first and the last
+    assert any("ETA" in line for line in lines[1:-1])
+    quiet = io.StringIO()
+    with Progress(10, "steps", "demo", mode="off", stream=quiet) as shown:
+        shown.update(5)
+    assert quiet.getvalue() == ""

@@ -120,7 +120,8 @@ def test_replicates_on_ray_give_the_results_of_local_ones(
     argv = [*EVOLVE, "--backend", "ray", "--address", address, "--replicates", "2"]
     ray_argv = [*argv, "--out", str(distributed)]
     assert replicate_command("evolution.cli", ray_argv, 0, 2, str(distributed), backend="ray") == 0
-    lines = capsys.readouterr().out.splitlines()
+    printed = capsys.readouterr().out
+    lines = printed.split("\nreplicate ")[0].splitlines()  # then the closing table
     assert sorted(lines) == sorted(
         [f"seed {s}: started, log in {distributed / f'seed-{s}' / 'log.txt'}" for s in (0, 1)]
         + ["seed 0: done", "seed 1: done"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -64,8 +65,15 @@ def test_a_replicate_trains_in_the_folder_that_holds_its_log(tmp_path: Path, cap
     argv = ["--algo", "cmaes", "--mazes", "M0_5x5_U", "--max-generations", "1"]
     assert replicate_command("evolution.cli", argv, 3, 1, str(tmp_path)) == 0
     assert (tmp_path / "seed-3" / "summary.json").is_file()
-    assert (tmp_path / "seed-3" / "log.txt").read_text().startswith("1 generations")
-    assert capsys.readouterr().out.splitlines()[-1] == "seed 3: done"
+    log = (tmp_path / "seed-3" / "log.txt").read_text()
+    assert "cmaes direct seed 3: 0% of" in log  # its progress, as plain lines
+    assert "\n1 generations" in log  # its closing headline
+    printed = capsys.readouterr().out.splitlines()
+    summary = json.loads((tmp_path / "seed-3" / "summary.json").read_text())
+    assert printed[-5] == "seed 3: done"
+    assert printed[-4].split() == ["replicate", "success", "R̄", "inputs", "env", "steps"]
+    assert printed[-3].split()[:3] == ["seed", "3", f"{summary['success_rate']:.3f}"]
+    assert [line.split()[0] for line in printed[-2:]] == ["median", "IQR"]
 
 
 def _toy_command(**fields) -> TrainingCommand:

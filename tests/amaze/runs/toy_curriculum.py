@@ -64,6 +64,10 @@ class ToyLearner:
 
 class ToyRun(CurriculumRun):
     config_class = ToyConfig
+    agent_file = "agent.json"
+
+    def save_agent(self, agent, path):
+        write_json(path, {"controller": "random", "seed": agent.seed})
 
     def new_learner(self, seed):
         return ToyLearner(seed)

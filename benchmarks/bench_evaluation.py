@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> None:
         f" input recognition: median {statistics.median(times) * 1e3:.1f} ms"
         f" (min {min(times) * 1e3:.1f}, max {max(times) * 1e3:.1f}; {args.repeats} repeats)"
     )
-    print(f"  success {report.success_rate:.3f}, mean R̄ {report.paper_reward:+.3f}")
+    print(f"  success {report.success_rate:.3f}, mean R̄ {report.normalized_reward:+.3f}")
 
 
 if __name__ == "__main__":

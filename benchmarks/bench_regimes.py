@@ -107,8 +107,8 @@ def figures(folder: Path, seed: int) -> dict[str, float]:
         "success": summary["success_rate"],
         "reward": summary["normalized_reward"],
         "recognition": summary["input_recognition"],
-        "unseen_success": float(unseen.success_rate[0]),
-        "unseen_reward": float(unseen.paper_reward[0]),
+        "unseen_success_rate": float(unseen.success_rate[0]),
+        "unseen_normalized_reward": float(unseen.normalized_reward[0]),
         "env_steps": summary["env_steps"],
     }
 
@@ -144,7 +144,7 @@ def main() -> None:
     table: dict[str, list[dict[str, float]]] = {}
     for regime, seed, folder in runs:
         table.setdefault(regime, []).append(figures(folder, seed))
-    keys = ("success", "reward", "recognition", "unseen_success", "unseen_reward")
+    keys = ("success", "reward", "recognition", "unseen_success_rate", "unseen_normalized_reward")
     print(f"{'regime':12} {'seed':>4} " + " ".join(f"{k:>14}" for k in keys) + "   env steps")
     for regime, rows in table.items():
         for seed, row in zip(args.seeds, rows, strict=True):
@@ -157,7 +157,7 @@ def main() -> None:
         for regime, rows in table.items():
             if regime == "dr":
                 continue
-            for key in ("success", "reward", "unseen_success", "unseen_reward"):
+            for key in ("success", "reward", "unseen_success_rate", "unseen_normalized_reward"):
                 ours, theirs = [r[key] for r in rows], [r[key] for r in table["dr"]]
                 test = mannwhitneyu(ours, theirs, alternative="greater")
                 print(

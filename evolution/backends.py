@@ -4,7 +4,7 @@ A **backend** makes the evaluator of a maze set (an
 :class:`~evolution.population.EvaluationBackend`: ``evaluate(policy) ->
 PopulationResult``)::
 
-    evaluator = backend.evaluator(mazes, robot, fitness="paper_reward", rotations=True)
+    evaluator = backend.evaluator(mazes, robot, fitness="normalized_reward", rotations=True)
     result = evaluator.evaluate(algorithm.population_policy(candidates))
 
 * :class:`LocalBackend` (the default) returns a
@@ -93,7 +93,7 @@ class Backend(Protocol):
         mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str],
         robot: Robot | str,
         *,
-        fitness: str = "paper_reward",
+        fitness: str = "normalized_reward",
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         rotations: bool = False,
         n_policies: int = 1,

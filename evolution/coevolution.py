@@ -19,8 +19,8 @@ best agent on its batch is played on them (4 rotations each); the champion
 is the agent with the best validation fitness so far (the run's ``fitness``
 measure, the earliest on ties). The suite itself is never looked at before
 the end. ``summary.json`` also reports the champion on 32
-other family mazes no part of the run played (``unseen_success``,
-``unseen_reward``; :func:`~amaze.curriculum.validation.unseen_mazes`).
+other family mazes no part of the run played (``unseen_success_rate``,
+``unseen_normalized_reward``; :func:`~amaze.curriculum.validation.unseen_mazes`).
 
 **Budget.** Env steps count every episode played, validation included;
 seconds everything the loop does. Where the time goes is reported in
@@ -69,7 +69,7 @@ from amaze.curriculum.coevolution import (
     MazeResult,
     mazes_csv,
 )
-from amaze.curriculum.genome import difficulty
+from amaze.curriculum.difficulty import difficulty
 from amaze.curriculum.picture import save_population_png
 from amaze.curriculum.validation import unseen_mazes, validation_mazes
 from amaze.maze import rotations
@@ -87,7 +87,7 @@ __all__ = ["EvolutionCoevolutionRun", "save_coevolution_plot"]
 
 PROGRESS_FIELDS = (
     "generation", "steps", "seconds", "best", "mean", "champion", "eval_seconds",
-    "validation", "validation_success", "champion_success", "members", "admitted",
+    "validation", "validation_success_rate", "champion_success_rate", "members", "admitted",
     "batch_difficulty", "population_difficulty", "diversity",
 )  # fmt: skip
 #: Version of the checkpoint layout; a checkpoint of another version is refused.
@@ -108,7 +108,7 @@ class _State:
     seconds: float = 0.0
     eval_seconds: float = 0.0
     champion_fitness: float = -np.inf
-    champion_success: float = 0.0
+    champion_success_rate: float = 0.0
     champion_generation: int = 0
     #: The champion: the best agent on the validation mazes so far.
     agent: ChosenAgent | None = None
@@ -195,10 +195,10 @@ class EvolutionCoevolutionRun(GenerationLoop):
             "target": c.target,
             "fitness_measure": c.fitness,
             "champion_fitness": s.champion_fitness,
-            "champion_validation_success": s.champion_success,
+            "champion_validation_success_rate": s.champion_success_rate,
             "champion_generation": s.champion_generation,
-            "unseen_success": float(result.success_rate[0]),
-            "unseen_reward": float(result.paper_reward[0]),
+            "unseen_success_rate": float(result.success_rate[0]),
+            "unseen_normalized_reward": float(result.normalized_reward[0]),
             "generations": s.generation,
             "env_steps": s.steps,
             "validation_steps": s.validation_steps,
@@ -233,7 +233,7 @@ class EvolutionCoevolutionRun(GenerationLoop):
     def headline(cls, summary: Mapping[str, Any]) -> str:
         return (
             f"{summary['generations']} generations, {summary['mazes_ever']} mazes;"
-            f" unseen family mazes: success {summary['unseen_success']:.3f};"
+            f" unseen family mazes: success {summary['unseen_success_rate']:.3f};"
             f" {super().headline(summary)}"
         )
 
@@ -262,13 +262,13 @@ class EvolutionCoevolutionRun(GenerationLoop):
         clock.lap("breeding")
         shape = (len(candidates), len(batch), 4)
         success = result.per_episode("success").reshape(shape)
-        reward = result.per_episode("paper_reward").reshape(shape)
+        reward = result.per_episode("normalized_reward").reshape(shape)
         report = s.mazes.update(
             batch, [MazeResult.of(success[:, b], reward[:, b]) for b in range(len(batch))]
         )
         clock.lap("mazes")
         s.generation += 1
-        validation = validation_success = float("nan")
+        validation = validation_success_rate = float("nan")
         champion = None
         options = self.options
         if (s.generation - 1) % options.validation_every == 0:
@@ -278,9 +278,9 @@ class EvolutionCoevolutionRun(GenerationLoop):
             )
             first = checked.best
             validation = float(checked.fitness[first])
-            validation_success = float(checked.success_rate[first])
+            validation_success_rate = float(checked.success_rate[first])
             if validation > s.champion_fitness:
-                s.champion_fitness, s.champion_success = validation, validation_success
+                s.champion_fitness, s.champion_success_rate = validation, validation_success_rate
                 s.champion_generation = s.generation
                 champion = algorithm.candidate_arrays(candidates[top[first]])
             s.steps += checked.env_steps
@@ -302,8 +302,8 @@ class EvolutionCoevolutionRun(GenerationLoop):
             "champion": s.champion_fitness,
             "eval_seconds": round(result.seconds, 4),
             "validation": validation,
-            "validation_success": validation_success,
-            "champion_success": s.champion_success,
+            "validation_success_rate": validation_success_rate,
+            "champion_success_rate": s.champion_success_rate,
             "members": len(s.mazes.members),
             "admitted": report.admitted,
             "batch_difficulty": round(report.batch_difficulty, 4),
@@ -387,11 +387,11 @@ def save_coevolution_plot(csv_path: Path, png_path: Path, target: str, title: st
     fit.plot(steps, column("mean"), ":", label="mean on the batch")
     fit.plot(steps, column("best"), "-", lw=0.8, label="best on the batch")
     fit.set_ylabel("fitness")
-    checked = np.array(column("validation_success"))
+    checked = np.array(column("validation_success_rate"))
     validated = ~np.isnan(checked)  # only every validation_every-th generation is validated
     valid.plot(steps[validated], checked[validated], "-", lw=0.6, alpha=0.6,
                label="generation's best")  # fmt: skip
-    valid.plot(steps, column("champion_success"), "-", lw=1.6, label="champion")
+    valid.plot(steps, column("champion_success_rate"), "-", lw=1.6, label="champion")
     valid.set_ylabel("validation success")
     valid.set_ylim(-0.02, 1.02)
     hard.plot(steps, column("batch_difficulty"), "-", lw=0.6, alpha=0.6, label="batch")

@@ -14,11 +14,11 @@ from typing import Any
 
 from amaze.curriculum.regimes import REGIMES
 from amaze.runs.config import option
-from amaze.runs.curriculum import CurriculumConfig
+from amaze.runs.regime import RegimeConfig
 from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.algorithms import ALGORITHMS, algorithm_class
-from evolution.population import FITNESS
+from evolution.population import FITNESS, OLD_FITNESS
 
 __all__ = ["COEVOLUTION_CMAES", "EvolveConfig"]
 
@@ -30,7 +30,7 @@ COEVOLUTION_CMAES: dict[str, Any] = {"network": {"hidden": [16]}, "restarts": 16
 
 
 @dataclass
-class EvolveConfig(CurriculumConfig):
+class EvolveConfig(RegimeConfig):
     """Everything that defines an evolution run (stored as ``config.json``).
 
     In the direct and coevolution regimes, ``budget_steps``, ``budget_seconds``
@@ -52,7 +52,7 @@ class EvolveConfig(CurriculumConfig):
 
     algo: str = option("cmaes", "search algorithm", choices=tuple(ALGORITHMS))
     fitness: str = option(
-        "paper_reward", "mean of this over the training episodes", choices=FITNESS
+        "normalized_reward", "mean of this over the training episodes", choices=FITNESS
     )
     budget_steps: int | None = option(3_000_000, "environment steps of the scored episodes")
     budget_seconds: float | None = option(None, "wall-clock seconds")
@@ -70,6 +70,7 @@ class EvolveConfig(CurriculumConfig):
         """Check every field; raise :class:`EvolutionConfigError` naming the bad value."""
         super().validate()
         algorithm_class(self.algo)  # an unknown name is refused, naming the choices
+        self.fitness = OLD_FITNESS.get(self.fitness, self.fitness)  # an older config.json
         if self.fitness not in FITNESS:
             raise EvolutionConfigError(
                 f"fitness {self.fitness!r} is not one of {', '.join(FITNESS)}"

@@ -13,7 +13,7 @@ current training session.
   generation; a seconds budget makes the session depend on the machine's
   speed), the fitness reached its maximum
   (*converged*: an individual whose every episode is optimal, R̄ = 1, for
-  ``paper_reward`` and ``pretty_reward``; every episode reached for
+  ``normalized_reward`` and ``pretty_reward``; every episode reached for
   ``success``), or the algorithm stopped (CMA-ES with no restart left). A
   new session starts with :meth:`~evolution.algorithms.SearchAlgorithm.forget_champion`:
   fitness on the previous mazes does not compare with fitness on these.
@@ -117,7 +117,7 @@ class EvolutionLearner:
         algo: str,
         robot: str,
         seed: int,
-        fitness: str = "paper_reward",
+        fitness: str = "normalized_reward",
         checkpoint_seconds: float = 10.0,
     ) -> None:
         if fitness not in FITNESS:
@@ -149,7 +149,7 @@ class EvolutionLearner:
         robot: str,
         seed: int,
         *,
-        fitness: str = "paper_reward",
+        fitness: str = "normalized_reward",
         checkpoint_seconds: float = 10.0,
     ) -> EvolutionLearner:
         """A fresh learner: algorithm ``algo`` with its JSON ``options``, seeded with ``seed``."""
@@ -342,7 +342,7 @@ class EvolutionLearner:
 
     def _converged(self, result: PopulationResult) -> bool:
         """True if an individual played every episode at the fitness measure's maximum."""
-        if self.fitness == "success":
+        if self.fitness == "success_rate":
             reached = result.per_episode("success").astype(bool)
         else:
             reached = result.per_episode(self.fitness) >= OPTIMAL

@@ -47,6 +47,7 @@ from evolution import EvolutionConfigError
 
 __all__ = [
     "FITNESS",
+    "OLD_FITNESS",
     "EvaluationBackend",
     "PopulationEvaluator",
     "PopulationPolicy",
@@ -56,7 +57,9 @@ __all__ = [
 ]
 
 #: Fitness measures: the mean over an individual's episodes of one of these.
-FITNESS: tuple[str, ...] = ("paper_reward", "success", "pretty_reward")
+FITNESS: tuple[str, ...] = ("normalized_reward", "success_rate", "pretty_reward")
+#: Fitness names of configs written before R̄ and the success rate had one name.
+OLD_FITNESS = {"paper_reward": "normalized_reward", "success": "success_rate"}
 
 
 def fewest_steps(mazes: Sequence[Maze | MazeSpec | str], robot: Robot | str) -> int:
@@ -105,7 +108,7 @@ class PopulationResult:
 
     fitness: np.ndarray
     success_rate: np.ndarray
-    paper_reward: np.ndarray
+    normalized_reward: np.ndarray
     pretty_reward: np.ndarray
     env_steps: int
     seconds: float
@@ -156,7 +159,7 @@ class PopulationResult:
         return cls(
             fitness=np.concatenate([r.fitness for r in results]),
             success_rate=np.concatenate([r.success_rate for r in results]),
-            paper_reward=np.concatenate([r.paper_reward for r in results]),
+            normalized_reward=np.concatenate([r.normalized_reward for r in results]),
             pretty_reward=np.concatenate([r.pretty_reward for r in results]),
             env_steps=sum(r.env_steps for r in results),
             seconds=float(sum(r.seconds for r in results) if seconds is None else seconds),
@@ -187,7 +190,7 @@ class PopulationEvaluator:
         mazes: Maze | MazeSpec | str | Sequence[Maze | MazeSpec | str],
         robot: Robot | str,
         *,
-        fitness: str = "paper_reward",
+        fitness: str = "normalized_reward",
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
         rotations: bool = False,
         n_policies: int = 1,
@@ -253,13 +256,13 @@ class PopulationEvaluator:
         seconds = time.perf_counter() - started
         shape = (n_policies, self.n_episodes)
         success = episodes.success.reshape(shape).mean(axis=1)
-        paper = episodes.paper_reward.reshape(shape).mean(axis=1)
+        paper = episodes.normalized_reward.reshape(shape).mean(axis=1)
         pretty = episodes.pretty_reward.reshape(shape).mean(axis=1)
-        fitness = {"paper_reward": paper, "success": success, "pretty_reward": pretty}
+        fitness = {"normalized_reward": paper, "success_rate": success, "pretty_reward": pretty}
         return PopulationResult(
             fitness=fitness[self.fitness].copy(),
             success_rate=success,
-            paper_reward=paper,
+            normalized_reward=paper,
             pretty_reward=pretty,
             env_steps=int(episodes.steps.sum()),
             seconds=seconds,

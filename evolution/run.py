@@ -266,7 +266,7 @@ class EvolutionRun(GenerationLoop):
             if c.agent_rule == "best-eval":
                 played = self.evaluation.evaluate(algorithm.population_policy([best]))
                 s.evaluation_steps += played.env_steps
-                score = (float(played.success_rate[0]), float(played.paper_reward[0]))
+                score = (float(played.success_rate[0]), float(played.normalized_reward[0]))
                 if s.agent is not None and s.agent.score >= score:
                     return
         extra = {"mazes": list(c.mazes), "fitness": float(result.fitness[result.best])}

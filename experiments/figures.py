@@ -49,10 +49,10 @@ def learning_curve(folder: Path) -> dict[str, np.ndarray] | None:
     """``steps``, ``seconds`` and, when logged, ``success`` and ``rbar`` of a run's progress.
 
     What each trainer logs: the direct RL run, its evaluation on the paper's
-    evaluation maze (``eval_success``, ``eval_rbar``); a curriculum, each
+    evaluation maze (``eval_success_rate``, ``eval_normalized_reward``); a curriculum, each
     branch on its own maze (``success``, ``rbar``; its seconds are per
     branch, summed here); coevolution, the champion on validation mazes
-    (``champion_success``); direct evolution, the champion's fitness (as R̄
+    (``champion_success_rate``); direct evolution, the champion's fitness (as R̄
     when the fitness measure is R̄; no success). ``None`` without a log;
     :class:`~experiments.study.StudyError` naming the file for a log that
     cannot be read (not UTF-8 text, not CSV, a missing column, a value that
@@ -89,16 +89,19 @@ def _curve(rows: list[dict[str, Any]], folder: Path) -> dict[str, np.ndarray]:
         curve["success"], curve["rbar"] = column("success"), column("rbar")
     else:
         curve["seconds"] = column("seconds")
-        if "eval_success" in fields:
-            curve["success"], curve["rbar"] = column("eval_success"), column("eval_rbar")
-        elif "champion_success" in fields:
-            curve["success"] = column("champion_success")
+        if "eval_success_rate" in fields:
+            curve["success"], curve["rbar"] = (
+                column("eval_success_rate"),
+                column("eval_normalized_reward"),
+            )
+        elif "champion_success_rate" in fields:
+            curve["success"] = column("champion_success_rate")
         elif "champion" in fields:
             try:
                 config = read_json_object(folder / "config.json", StudyError, "run config")
             except StudyError:  # without its config, the fitness is not known to be R̄
                 config = {}
-            if config.get("fitness") == "paper_reward":
+            if config.get("fitness") == "normalized_reward":
                 curve["rbar"] = column("champion")
     return curve
 

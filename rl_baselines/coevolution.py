@@ -34,7 +34,7 @@ the model is written first, the state last, each atomically, so a kill
 between the two leaves the previous pair) and ``champion.zip`` + ``.json``;
 ``agent.zip`` + ``agent.json``; ``mazes.csv``; ``population.png``; ``summary.json``;
 ``trajectories/``; ``tensorboard/`` (SB3's losses and returns, and
-``coevolution/validation_success``, ``coevolution/population_difficulty``...).
+``coevolution/validation_success_rate``, ``coevolution/population_difficulty``...).
 A resumed run continues from the last checkpoint with the population as it
 was; SB3 does not save its random state, so it is a faithful continuation,
 not a bit-identical replay. Where a run on a seconds budget ends depends on
@@ -83,8 +83,8 @@ from rl_baselines.vec_env import SB3VecEnv
 __all__ = ["SB3CoevolutionRun"]
 
 PROGRESS_FIELDS = (
-    "round", "steps", "seconds", "batch_success", "validation", "validation_success",
-    "champion_success", "members", "admitted", "batch_difficulty", "population_difficulty",
+    "round", "steps", "seconds", "batch_success_rate", "validation", "validation_success_rate",
+    "champion_success_rate", "members", "admitted", "batch_difficulty", "population_difficulty",
 )  # fmt: skip
 CHECKPOINT_VERSION = 2
 
@@ -100,7 +100,7 @@ class _State:
     scoring_steps: int = 0
     validation_steps: int = 0
     champion_fitness: float = -np.inf
-    champion_success: float = 0.0
+    champion_success_rate: float = 0.0
     champion_round: int = 0
     #: Training steps when the champion was found.
     champion_steps: int = 0
@@ -240,7 +240,9 @@ class SB3CoevolutionRun(Run):
                     self.save_checkpoint()
                     last_checkpoint = s.steps
                 done = s.steps if c.budget_steps else self.seconds()
-                shown.update(done, round=s.round, champion_success=f"{s.champion_success:.2f}")
+                shown.update(
+                    done, round=s.round, champion_success_rate=f"{s.champion_success_rate:.2f}"
+                )
         if s.round == 0 or not self.champion_file.exists():
             raise RLConfigError("the run played no round")
 
@@ -289,11 +291,11 @@ class SB3CoevolutionRun(Run):
             "seconds": round(self.seconds(), 3),
             "budget_steps": c.budget_steps,
             "budget_seconds": c.budget_seconds,
-            "champion_validation_reward": s.champion_fitness,
-            "champion_validation_success": s.champion_success,
+            "champion_validation_normalized_reward": s.champion_fitness,
+            "champion_validation_success_rate": s.champion_success_rate,
             "champion_round": s.champion_round,
-            "unseen_success": float(unseen.success.mean()),
-            "unseen_reward": float(unseen.paper_reward.mean()),
+            "unseen_success_rate": float(unseen.success.mean()),
+            "unseen_normalized_reward": float(unseen.normalized_reward.mean()),
             "mazes_ever": len(s.mazes.records),
             "members": len(s.mazes.members),
             "coevolution": self.options.to_dict(),
@@ -326,27 +328,27 @@ class SB3CoevolutionRun(Run):
         s.scoring_steps += int(played.steps.sum())
         shape = (len(batch), 4)
         success = played.success.reshape(shape).astype(float)
-        reward = played.paper_reward.reshape(shape)
+        reward = played.normalized_reward.reshape(shape)
         report = s.mazes.update(
             batch, [MazeResult.of(success[b][None], reward[b][None]) for b in range(len(batch))]
         )
         s.round += 1
-        validation = validation_success = float("nan")
+        validation = validation_success_rate = float("nan")
         if (s.round - 1) % self.options.validation_every == 0:
             checked = _play(self.validation, agent)
             s.validation_steps += int(checked.steps.sum())
-            validation = float(checked.paper_reward.mean())
-            validation_success = float(checked.success.mean())
+            validation = float(checked.normalized_reward.mean())
+            validation_success_rate = float(checked.success.mean())
             if validation > s.champion_fitness:
-                s.champion_fitness, s.champion_success = validation, validation_success
+                s.champion_fitness, s.champion_success_rate = validation, validation_success_rate
                 s.champion_round, s.champion_steps = s.round, s.steps
                 agent.save(self.champion_file)
         members, difficulty = len(s.mazes.members), s.mazes.mean_difficulty()
         logger = model.logger
         for key, value in (
-            ("validation_success", validation_success),
-            ("champion_success", s.champion_success),
-            ("batch_success", float(success.mean())),
+            ("validation_success_rate", validation_success_rate),
+            ("champion_success_rate", s.champion_success_rate),
+            ("batch_success_rate", float(success.mean())),
             ("batch_difficulty", report.batch_difficulty),
             ("population_difficulty", difficulty),
             ("members", members),
@@ -359,10 +361,10 @@ class SB3CoevolutionRun(Run):
             "round": s.round,
             "steps": s.steps,
             "seconds": round(s.seconds, 3),
-            "batch_success": float(success.mean()),
+            "batch_success_rate": float(success.mean()),
             "validation": validation,
-            "validation_success": validation_success,
-            "champion_success": s.champion_success,
+            "validation_success_rate": validation_success_rate,
+            "champion_success_rate": s.champion_success_rate,
             "members": members,
             "admitted": report.admitted,
             "batch_difficulty": round(report.batch_difficulty, 4),

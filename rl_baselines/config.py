@@ -1,6 +1,6 @@
 """The config of an ``amaze-train`` run (:class:`TrainConfig`) and its hyperparameter checks.
 
-:class:`TrainConfig` is a :class:`~amaze.runs.curriculum.CurriculumConfig`:
+:class:`TrainConfig` is a :class:`~amaze.runs.curriculum.RegimeConfig`:
 ``regime`` is ``direct`` (:class:`rl_baselines.train.SB3Run`), ``interpolation``
 or ``edhucat`` (the curriculum loop, :class:`rl_baselines.curriculum.SB3CurriculumRun`),
 with ``curator``, ``stages``, ``branches`` and ``target`` for the curricula.
@@ -38,7 +38,7 @@ from typing import Any
 from amaze.curriculum.regimes import REGIMES, branch_allowance
 from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
 from amaze.runs.config import option
-from amaze.runs.curriculum import CurriculumConfig
+from amaze.runs.regime import RegimeConfig
 from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
 from rl_baselines.agent import algorithm_class
@@ -56,7 +56,7 @@ MIN_N_STEPS = 8
 
 
 @dataclass
-class TrainConfig(CurriculumConfig):
+class TrainConfig(RegimeConfig):
     """Everything that defines a training run (stored as ``config.json``).
 
     The budget is ``budget_steps`` env steps and/or ``budget_seconds``

@@ -17,7 +17,7 @@ Rollouts are fitted to small budgets (see :func:`rl_baselines.config.fitted_hype
 ``summary.json`` records them (``hyperparameters_used``). TensorBoard logs
 (with ``--tensorboard``, the default) go to ``OUT/tensorboard/``, one log per
 branch (``stage-<s>-branch-<b>_0``), with the evaluations (``eval/success_rate``,
-``eval/rbar``) besides SB3's own figures.
+``eval/normalized_reward``) besides SB3's own figures.
 """
 
 from __future__ import annotations

@@ -322,12 +322,12 @@ class SB3Learner:
         if last is not None and steps - last < self.eval_every:
             return
         report = self._evaluator.evaluate(self.agent())
-        session["converged"] = all(e.paper_reward >= OPTIMAL for e in report.episodes)
+        session["converged"] = all(e.normalized_reward >= OPTIMAL for e in report.episodes)
         session["last_eval"] = int(steps)
         if logger is not None:  # inside SB3's learn: the session's TensorBoard log
             summary = report.summary()
             logger.record("eval/success_rate", float(summary["success_rate"]))
-            logger.record("eval/rbar", float(summary["normalized_reward"]))
+            logger.record("eval/normalized_reward", float(summary["normalized_reward"]))
             logger.dump(int(self.model.num_timesteps))
         if self._checkpoint is not None:
             self._checkpoint()

@@ -34,7 +34,8 @@ machine's speed, so it does not replay, nor resume, bit-identically.
 Run folder (``out``):
 
 * ``config.json``: the :class:`TrainConfig` (enough to resume);
-* ``progress.csv``: one row per evaluation: ``steps, seconds, eval_success, eval_rbar``;
+* ``progress.csv``: one row per evaluation: ``steps, seconds, eval_success_rate,
+  eval_normalized_reward``;
 * ``checkpoints/model.zip`` + ``checkpoints/state.json``: the latest model and the
   step counter, time spent and evaluation state, each written atomically;
 * ``checkpoints/champion.zip`` + ``.json``: the best agent on the evaluation mazes so far;
@@ -44,7 +45,7 @@ Run folder (``out``):
   budget spent (``env_steps``, ``seconds``);
 * ``trajectories/``: PNGs of the agent in the 4 rotations of the first evaluation maze;
 * ``tensorboard/``: SB3's TensorBoard logs (losses, episode returns) and the
-  evaluations (``eval/success_rate``, ``eval/rbar``), in ``direct_0``;
+  evaluations (``eval/success_rate``, ``eval/normalized_reward``), in ``direct_0``;
   ``tensorboard --logdir OUT/tensorboard``.
 
 Evaluations (and checkpoints) happen at the first rollout boundary at least
@@ -83,7 +84,7 @@ from rl_baselines.vec_env import SB3VecEnv
 
 __all__ = ["SB3Run", "TrainConfig", "resume", "train"]
 
-PROGRESS_FIELDS = ("steps", "seconds", "eval_success", "eval_rbar")
+PROGRESS_FIELDS = ("steps", "seconds", "eval_success_rate", "eval_normalized_reward")
 
 
 def _checked_state(state: dict[str, Any]) -> dict[str, Any]:
@@ -143,17 +144,17 @@ class _EvaluationCallback(BaseCallback):
         if run.best is None or score > run.best:
             run.best, run.best_steps = score, steps
             agent.save(run.champion_file)
-        run.converged = all(e.paper_reward >= OPTIMAL for e in report.episodes)
+        run.converged = all(e.normalized_reward >= OPTIMAL for e in report.episodes)
         run.last_eval_steps = steps
         self.logger.record("eval/success_rate", score[0])
-        self.logger.record("eval/rbar", score[1])
+        self.logger.record("eval/normalized_reward", score[1])
         self.logger.dump(steps)
         run.progress.append(
             {
                 "steps": steps,
                 "seconds": round(run.seconds(), 3),
-                "eval_success": score[0],
-                "eval_rbar": score[1],
+                "eval_success_rate": score[0],
+                "eval_normalized_reward": score[1],
             }
         )
         run.save_checkpoint()

@@ -15,7 +15,7 @@ dones, infos)``; an environment whose episode ended is reset in the same step
 ``terminal_observation``, ``TimeLimit.truncated`` (deadline reached without
 reaching the goal), ``episode`` (``r``, ``l``, ``t``: what SB3's ``Monitor``
 would give, so that SB3 logs episode returns), and the episode's ``success``,
-``pretty_reward`` and ``paper_reward``.
+``pretty_reward`` and ``normalized_reward``.
 
 Observations are those of ``AMaze-v0``: float32 ``(8,)`` for discrete inputs,
 uint8 ``(1, v, v)`` channel-first images otherwise (too small for SB3's
@@ -118,7 +118,7 @@ class SB3VecEnv(VecEnv):
             now = time.time()
             finals = self._format(result.final_observations)
             pretty = episodes.pretty_rewards()
-            paper = episodes.paper_rewards()
+            paper = episodes.normalized_rewards()
             for index, agent in enumerate(episodes.agents.tolist()):
                 info = infos[agent]
                 info["terminal_observation"] = finals[index]
@@ -127,7 +127,7 @@ class SB3VecEnv(VecEnv):
                 )
                 info["success"] = bool(episodes.success[index])
                 info["pretty_reward"] = float(pretty[index])
-                info["paper_reward"] = float(paper[index])
+                info["normalized_reward"] = float(paper[index])
                 info["episode"] = {
                     "r": float(episodes.cumulative_reward[index]),
                     "l": int(episodes.steps[index]),

@@ -63,13 +63,15 @@ def test_the_command_plays_three_mazes_in_four_rotations_as_the_python_protocol(
     for maze, ((name, _), scores) in zip(outcome["mazes"], per_maze.items(), strict=True):
         assert maze["maze"] == name and maze["episodes"] == 4
         assert maze["success_rate"] == scores["success_rate"]
-        assert maze["normalized_reward"] == scores["paper_reward"]
+        assert maze["normalized_reward"] == scores["normalized_reward"]
         assert maze["mean_steps"] == scores["mean_steps"]
     with episodes_csv.open(newline="") as handle:
         rows = list(csv.DictReader(handle))
     assert [row["maze"] for row in rows] == [e.maze for e in report.episodes] == rotations(MAZES)
     assert [int(row["steps"]) for row in rows] == [e.steps for e in report.episodes]
-    assert [float(row["paper_reward"]) for row in rows] == [e.paper_reward for e in report.episodes]
+    assert [float(row["normalized_reward"]) for row in rows] == [
+        e.normalized_reward for e in report.episodes
+    ]
 
 
 def test_the_readable_table_has_a_row_per_maze(capsys, evolved):
@@ -89,7 +91,7 @@ def test_one_rotation_plays_three_episodes(capsys, evolved):
     outcome = json.loads(out)
     assert outcome["episodes"] == 3 and outcome["rotations"] == 1
     report = evaluate(load_agent(evolved), "DD", MAZES, rotations=1)
-    assert outcome["normalized_reward"] == report.paper_reward
+    assert outcome["normalized_reward"] == report.normalized_reward
 
 
 def test_the_suite_reproduces_the_summary_of_the_run(capsys, evolved):

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from amaze.curriculum.regimes import REGIMES
-from amaze.runs.curriculum import DEFAULT_CURATOR
+from amaze.runs.regime import DEFAULT_CURATOR
 from evolution.cli import main as evolve_main
 from evolution.config import EvolveConfig
 from rl_baselines.cli import main as train_main

@@ -15,8 +15,8 @@ Above the maze core, below environments and evaluation:
 The batch engine imports numba; import it from :mod:`amaze.agents.engine`.
 """
 
-from amaze.agents.rewards import RewardScheme, paper_reward, pretty_reward
+from amaze.agents.rewards import RewardScheme, normalized_reward, pretty_reward
 from amaze.agents.robot import Robot, as_robot
 from amaze.agents.simulation import Simulation
 
-__all__ = ["RewardScheme", "Robot", "Simulation", "as_robot", "paper_reward", "pretty_reward"]
+__all__ = ["RewardScheme", "Robot", "Simulation", "as_robot", "normalized_reward", "pretty_reward"]

@@ -74,7 +74,7 @@ from amaze.agents.rewards import (
     COLLISION_PENALTY,
     DEFAULT_DEADLINE_FACTOR,
     check_deadline_factor,
-    paper_rewards,
+    normalized_rewards,
     pretty_rewards,
 )
 from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
@@ -792,7 +792,7 @@ class EndedEpisodes:
     ``cumulative_reward`` is the reference's raw return ``R``; ``steps``,
     ``collisions``, ``backsteps`` its counters; ``success`` whether the goal was
     reached; ``path_length`` the maze's ``l``. :meth:`pretty_rewards` and
-    :meth:`paper_rewards` give both normalised scores.
+    :meth:`normalized_rewards` give both normalised scores.
     """
 
     agents: np.ndarray
@@ -814,9 +814,9 @@ class EndedEpisodes:
             self.cumulative_reward, self.path_length, self.dt, self.deadline_factor
         )
 
-    def paper_rewards(self) -> np.ndarray:
+    def normalized_rewards(self) -> np.ndarray:
         """The paper's normalised reward ``R̄`` of each episode (1 for an optimal run)."""
-        return paper_rewards(
+        return normalized_rewards(
             self.success, self.steps, self.collisions, self.backsteps, self.path_length, self.dt
         )
 

@@ -21,7 +21,7 @@ Two normalisations of an episode:
 * :func:`pretty_reward`: the reference's ``normalized_reward()``, a linear
   rescale of ``R`` to [-1, 1] between the worst run and the optimal one, rounded
   to 3 decimals;
-* :func:`paper_reward`: the paper's ``R̄`` (Table 2): +2 for reaching the goal,
+* :func:`normalized_reward`: the paper's ``R̄`` (Table 2): +2 for reaching the goal,
   ``-dt/(l-1)`` per step, -0.01 per collision, -0.02 per backward step. An
   optimal run scores exactly 1; this is the score of the paper's result tables.
 
@@ -146,7 +146,7 @@ def pretty_reward(cumulative_reward: float, scheme: RewardScheme) -> float:
     return round(2.0 * (cumulative_reward - r_min) / (r_max - r_min) - 1.0, 3)
 
 
-def paper_reward(
+def normalized_reward(
     success: bool, steps: int, collisions: int, backsteps: int, path_length: int, dt: float
 ) -> float:
     """The paper's normalised cumulative reward ``R̄`` (1 for an optimal run)."""
@@ -203,7 +203,7 @@ def round_like_python(values: np.ndarray, decimals: int) -> np.ndarray:
 _FEW_VALUES = 20
 
 
-def paper_rewards(
+def normalized_rewards(
     success: np.ndarray,
     steps: np.ndarray,
     collisions: np.ndarray,
@@ -211,7 +211,7 @@ def paper_rewards(
     path_length: np.ndarray,
     dt: float,
 ) -> np.ndarray:
-    """:func:`paper_reward` of many episodes at once (the same floats, element by element)."""
+    """:func:`normalized_reward` of many episodes at once (the same floats, element by element)."""
     return (
         PAPER_FINISH * np.asarray(success, dtype=bool).astype(np.float64)
         - dt * np.asarray(steps, dtype=np.float64) / (np.asarray(path_length, np.float64) - 1)

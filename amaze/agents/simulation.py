@@ -36,7 +36,7 @@ from amaze.agents.rewards import (
     DEFAULT_DEADLINE_FACTOR,
     RewardScheme,
     check_deadline_factor,
-    paper_reward,
+    normalized_reward,
     pretty_reward,
 )
 from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
@@ -283,9 +283,9 @@ class Simulation:
         """The reference's normalised reward (linear rescale of R to [-1, 1])."""
         return pretty_reward(self.cumulative_reward, self.rewards)
 
-    def paper_reward(self) -> float:
+    def normalized_reward(self) -> float:
         """The paper's R̄ (Table 2; 1 for an optimal run)."""
-        return paper_reward(
+        return normalized_reward(
             self.success(),
             self.stats.steps,
             self.stats.collisions,
@@ -295,14 +295,14 @@ class Simulation:
         )
 
     def infos(self) -> dict[str, Any]:
-        """Episode statistics, with the reference's keys plus ``paper_reward``."""
+        """Episode statistics, with the reference's keys plus ``normalized_reward``."""
         return {
             "time": self.timestep,
             "success": self.success(),
             "failure": self.failure(),
             "done": self.done(),
             "pretty_reward": self.pretty_reward(),
-            "paper_reward": self.paper_reward(),
+            "normalized_reward": self.normalized_reward(),
             "len": self.maze.path_length,
             "steps": self.stats.steps,
             "collisions": self.stats.collisions,

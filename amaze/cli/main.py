@@ -135,7 +135,7 @@ def _cmd_run(args: argparse.Namespace) -> None:
         "backsteps": int(result.backsteps[0]),
         "cumulative_reward": float(result.cumulative_reward[0]),
         "pretty_reward": float(result.pretty_reward[0]),
-        "paper_reward": float(result.paper_reward[0]),
+        "normalized_reward": float(result.normalized_reward[0]),
     }
     if args.json:
         print(json.dumps(outcome))
@@ -148,13 +148,13 @@ def _cmd_run(args: argparse.Namespace) -> None:
         )
         print(
             f"  reward {outcome['cumulative_reward']:.2f}, pretty reward"
-            f" {outcome['pretty_reward']:+.3f}, R̄ {outcome['paper_reward']:+.3f}"
+            f" {outcome['pretty_reward']:+.3f}, R̄ {outcome['normalized_reward']:+.3f}"
         )
     if trajectory_png is not None or gif is not None:
         from amaze.agents.trajectories import save_episode_gif, save_trajectory_png
 
         caption = (
-            f"{args.controller} controller · paper reward {outcome['paper_reward']:+.3f}"
+            f"{args.controller} controller · paper reward {outcome['normalized_reward']:+.3f}"
             f" · pretty reward {outcome['pretty_reward']:+.3f}"
         )
         if trajectory_png is not None:
@@ -306,7 +306,7 @@ def _evaluation_outcome(args: argparse.Namespace, report: EvaluationReport) -> d
             "maze": maze,
             "episodes": scores["episodes"],
             "success_rate": scores["success_rate"],
-            "normalized_reward": scores["paper_reward"],
+            "normalized_reward": scores["normalized_reward"],
             "pretty_reward": scores["pretty_reward"],
             "mean_steps": scores["mean_steps"],
         }

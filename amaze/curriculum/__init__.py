@@ -26,16 +26,14 @@ from amaze.curriculum.curators import (
     curator_names,
     make_curator,
 )
-from amaze.curriculum.genome import (
+from amaze.curriculum.difficulty import (
     DifficultyProfile,
-    GenomeError,
-    MazeGenome,
-    SignSet,
     difficulty,
     difficulty_profile,
     harder_or_equal,
-    maze_distance,
 )
+from amaze.curriculum.distance import maze_distance
+from amaze.curriculum.genome import GenomeError, MazeGenome, SignSet
 from amaze.curriculum.interpolation import InterpolationError, curriculum, interpolate
 from amaze.curriculum.regimes import REGIMES, branch_allowance
 

@@ -73,9 +73,15 @@ from typing import Any
 
 import numpy as np
 
-from amaze.curriculum.genome import SEED_RANGE, DifficultyProfile, MazeGenome
+from amaze.curriculum.difficulty import DifficultyProfile
+from amaze.curriculum.genome import SEED_RANGE, MazeGenome
+from amaze.curriculum.replay import (
+    CoevolutionError,
+    rank_weights,
+    replay_distribution,
+    staleness_weights,
+)
 from amaze.curriculum.validation import reserved_seeds, unseen_mazes
-from amaze.errors import AmazeError
 from amaze.maze.maze import Maze, as_mazes, rotations
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
 from amaze.validation import check_integer, check_number
@@ -110,10 +116,6 @@ DESCRIPTOR_SCALES: dict[str, float] = {
 _REDRAWS = 8
 #: The stream of a run's maze population, apart from its algorithm's.
 _POPULATION_STREAM = 0xC0E
-
-
-class CoevolutionError(AmazeError):
-    """A bad option of the maze population, or results that do not fit its batch."""
 
 
 @dataclass(frozen=True)
@@ -204,59 +206,6 @@ class MazePopulationConfig:
         return dataclasses.asdict(self)
 
 
-# -- the sampling rules ---------------------------------------------------------------
-
-
-def rank_weights(scores: Sequence[float] | np.ndarray, temperature: float) -> np.ndarray:
-    """PLR's rank prioritisation: ``h(rank) = rank ** (-1 / temperature)``, normalised.
-
-    ``scores`` is flattened first; rank 1 is the highest score, ties ranked
-    in the order of the scores (a stable sort). The temperature is an
-    exponent: lower is greedier.
-    """
-    values = np.asarray(scores, dtype=np.float64).reshape(-1)
-    if values.size == 0:
-        return values
-    temperature = check_number(
-        "temperature", temperature, minimum=0, strict_minimum=True, error=CoevolutionError
-    )
-    order = np.argsort(-values, kind="stable")
-    ranks = np.empty(values.size, dtype=np.float64)
-    ranks[order] = np.arange(1, values.size + 1)
-    weights = ranks ** (-1.0 / temperature)
-    return weights / weights.sum()
-
-
-def staleness_weights(last_played: Sequence[int] | np.ndarray, now: int) -> np.ndarray:
-    """PLR's staleness distribution ``(now - last_i) / sum_j (now - last_j)``.
-
-    Uniform when every member was played at ``now``.
-    """
-    ages = now - np.asarray(last_played, dtype=np.float64).reshape(-1)
-    if ages.size == 0:
-        return ages
-    if np.any(ages < 0):
-        raise CoevolutionError(f"a member was played after generation {now}")
-    total = ages.sum()
-    if total <= 0:
-        return np.full(ages.size, 1.0 / ages.size)
-    return ages / total
-
-
-def replay_distribution(
-    scores: Sequence[float] | np.ndarray,
-    last_played: Sequence[int] | np.ndarray,
-    now: int,
-    *,
-    temperature: float,
-    staleness: float,
-) -> np.ndarray:
-    """``(1 - staleness) * rank_weights + staleness * staleness_weights`` over the members."""
-    return (1.0 - staleness) * rank_weights(scores, temperature) + staleness * staleness_weights(
-        last_played, now
-    )
-
-
 # -- the population -------------------------------------------------------------------
 
 
@@ -267,10 +216,10 @@ class MazeRecord:
     ``origin`` is ``family`` (a fresh maze of the target's family) or
     ``mutant`` (of ``parent``, a record id); ``birth`` the generation it was
     first played and admitted at, ``retired`` the one it was replaced at
-    (None while a member). ``score``, ``success`` and ``reward`` are those of
-    the last generation that played it (``success`` and ``reward`` are the
-    agent population's means over its 4 rotations), ``best_reward`` the best
-    R̄ an agent ever had on it; ``plays`` counts the generations that played it.
+    (None while a member). ``score``, ``success_rate`` and ``normalized_reward``
+    are those of the last generation that played it (the agent population's
+    means over its 4 rotations), ``best_normalized_reward`` the best R̄ an
+    agent ever had on it; ``plays`` counts the generations that played it.
     """
 
     id: int
@@ -281,9 +230,9 @@ class MazeRecord:
     profile: DifficultyProfile
     difficulty: float
     score: float = 0.0
-    success: float = math.nan
-    reward: float = math.nan
-    best_reward: float = -math.inf
+    success_rate: float = math.nan
+    normalized_reward: float = math.nan
+    best_normalized_reward: float = -math.inf
     plays: int = 0
     last_played: int = 0
     retired: int | None = None
@@ -307,9 +256,9 @@ class MazeRecord:
             "plays": self.plays,
             "last_played": self.last_played,
             "score": round(self.score, 6),
-            "success": round(self.success, 6),
-            "reward": round(self.reward, 6),
-            "best_reward": round(self.best_reward, 6),
+            "success_rate": round(self.success_rate, 6),
+            "normalized_reward": round(self.normalized_reward, 6),
+            "best_normalized_reward": round(self.best_normalized_reward, 6),
             "difficulty": round(self.difficulty, 4),
             **{k: round(float(v), 4) for k, v in self.profile.components().items()},
         }
@@ -317,7 +266,8 @@ class MazeRecord:
 
 #: The columns of ``mazes.csv``, in order.
 MAZES_CSV_FIELDS = (
-    "id maze origin parent birth retired plays last_played score success reward best_reward"
+    "id maze origin parent birth retired plays last_played score success_rate normalized_reward"
+    " best_normalized_reward"
     " difficulty path_length intersections lures traps surprisingness deceptiveness"
 ).split()
 
@@ -343,14 +293,14 @@ class BatchMaze:
 class MazeResult:
     """How the agent population fared on one batch maze (all agents, 4 rotations each).
 
-    ``success`` and ``reward`` are means over every episode, ``best_reward``
-    the best agent's mean R̄ over its rotations, ``solved`` whether any
-    episode reached the goal.
+    ``success_rate`` and ``normalized_reward`` are means over every episode,
+    ``best_normalized_reward`` the best agent's mean R̄ over its rotations,
+    ``solved`` whether any episode reached the goal.
     """
 
-    success: float
-    reward: float
-    best_reward: float
+    success_rate: float
+    normalized_reward: float
+    best_normalized_reward: float
     solved: bool
 
     @classmethod
@@ -364,9 +314,9 @@ class MazeResult:
                 " give (agents, rotations) arrays"
             )
         return cls(
-            success=float(success.mean()),
-            reward=float(reward.mean()),
-            best_reward=float(reward.mean(axis=1).max()),
+            success_rate=float(success.mean()),
+            normalized_reward=float(reward.mean()),
+            best_normalized_reward=float(reward.mean(axis=1).max()),
             solved=bool(success.any()),
         )
 
@@ -535,12 +485,15 @@ class MazePopulation:
     # -- inner workings ----------------------------------------------------------------
 
     def _score(self, record: MazeRecord, result: MazeResult, now: int) -> None:
-        record.success, record.reward = result.success, result.reward
-        record.best_reward = max(record.best_reward, result.best_reward)
+        record.success_rate = result.success_rate
+        record.normalized_reward = result.normalized_reward
+        record.best_normalized_reward = max(
+            record.best_normalized_reward, result.best_normalized_reward
+        )
         if self.config.score == "learnability":
-            record.score = result.success * (1.0 - result.success)
+            record.score = result.success_rate * (1.0 - result.success_rate)
         else:
-            record.score = record.best_reward - result.reward
+            record.score = record.best_normalized_reward - result.normalized_reward
         record.plays += 1
         record.last_played = now
 

@@ -94,7 +94,7 @@ class MazeResults:
 
     maze: str
     success: tuple[bool, ...]
-    paper_reward: tuple[float, ...]
+    normalized_reward: tuple[float, ...]
     steps: tuple[int, ...]
 
     @property
@@ -102,9 +102,9 @@ class MazeResults:
         return float(np.mean(self.success))
 
     @property
-    def mean_reward(self) -> float:
+    def normalized_reward_mean(self) -> float:
         """The mean of the paper's R̄ over the rotations."""
-        return float(np.mean(self.paper_reward))
+        return float(np.mean(self.normalized_reward))
 
     @property
     def solved(self) -> bool:
@@ -115,7 +115,7 @@ class MazeResults:
         return {
             "maze": self.maze,
             "success": list(self.success),
-            "paper_reward": list(self.paper_reward),
+            "normalized_reward": list(self.normalized_reward),
             "steps": list(self.steps),
         }
 
@@ -130,12 +130,14 @@ class MazeResults:
         success = data["success"]
         if not isinstance(success, list) or not all(isinstance(v, bool) for v in success):
             raise ValueError(f"success {success!r} is not a list of true/false")
-        rewards = tuple(check_number("paper_reward", v, maximum=1.0) for v in data["paper_reward"])
+        values = data["normalized_reward"] if "normalized_reward" in data else data["paper_reward"]
+        # ("paper_reward": the name in result.json files written before it had one name)
+        rewards = tuple(check_number("normalized_reward", v, maximum=1.0) for v in values)
         steps = tuple(check_integer("steps", v, minimum=0) for v in data["steps"])
         if not len(success) == len(rewards) == len(steps):
-            raise ValueError("success, paper_reward and steps are not as long as each other")
+            raise ValueError("success, normalized_reward and steps are not as long as each other")
         return cls(
-            maze=str(data["maze"]), success=tuple(success), paper_reward=rewards, steps=steps
+            maze=str(data["maze"]), success=tuple(success), normalized_reward=rewards, steps=steps
         )
 
 
@@ -174,9 +176,9 @@ class Candidate:
         return _mean([s for r in self.own for s in r.success])
 
     @property
-    def mean_reward(self) -> float:
+    def normalized_reward(self) -> float:
         """Mean R̄ on its own mazes."""
-        return _mean([v for r in self.own for v in r.paper_reward])
+        return _mean([v for r in self.own for v in r.normalized_reward])
 
     @property
     def solved(self) -> bool:
@@ -189,9 +191,9 @@ class Candidate:
         return _mean([s for r in self.own + self.others for s in r.success])
 
     @property
-    def overall_mean_reward(self) -> float:
+    def overall_normalized_reward(self) -> float:
         """Mean R̄ on every maze of the stage."""
-        return _mean([v for r in self.own + self.others for v in r.paper_reward])
+        return _mean([v for r in self.own + self.others for v in r.normalized_reward])
 
     @property
     def validation_success_rate(self) -> float:
@@ -199,16 +201,16 @@ class Candidate:
         return _mean([s for r in self.validation for s in r.success])
 
     @property
-    def validation_mean_reward(self) -> float:
+    def validation_normalized_reward(self) -> float:
         """Mean R̄ on the curator's validation mazes (NaN without any)."""
-        return _mean([v for r in self.validation for v in r.paper_reward])
+        return _mean([v for r in self.validation for v in r.normalized_reward])
 
     def figures(self) -> dict[str, Any]:
         """The figures a decision record keeps of the candidate."""
         validation = (
             {
                 "validation_success_rate": self.validation_success_rate,
-                "validation_mean_reward": self.validation_mean_reward,
+                "validation_normalized_reward": self.validation_normalized_reward,
             }
             if self.validation
             else {}
@@ -217,9 +219,9 @@ class Candidate:
             **validation,
             "branch": self.branch,
             "success_rate": self.success_rate,
-            "mean_reward": self.mean_reward,
+            "normalized_reward": self.normalized_reward,
             "overall_success_rate": self.overall_success_rate,
-            "overall_mean_reward": self.overall_mean_reward,
+            "overall_normalized_reward": self.overall_normalized_reward,
             "env_steps": self.env_steps,
             "converged": self.converged,
         }

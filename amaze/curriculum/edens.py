@@ -61,7 +61,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
-from amaze.curriculum.genome import MazeGenome, SignSet, difficulty, maze_distance
+from amaze.curriculum.difficulty import difficulty
+from amaze.curriculum.distance import maze_distance
+from amaze.curriculum.genome import MazeGenome, SignSet
 from amaze.curriculum.validation import validation_mazes
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
 from amaze.validation import check_integer
@@ -136,7 +138,7 @@ class EdensCurator:
         reached = difficulty(candidate.mazes[0]) * candidate.success_rate
         return (
             candidate.validation_success_rate,
-            candidate.validation_mean_reward,
+            candidate.validation_normalized_reward,
             reached,
         )
 

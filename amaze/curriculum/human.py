@@ -96,19 +96,19 @@ class TerminalCurator:
         """What a person sees of a candidate, as lines of text."""
         lines = [
             f"branch {candidate.branch}: success {candidate.success_rate:.2f},"
-            f" R̄ {candidate.mean_reward:+.3f} on its own maze;"
+            f" R̄ {candidate.normalized_reward:+.3f} on its own maze;"
             f" overall success {candidate.overall_success_rate:.2f},"
-            f" R̄ {candidate.overall_mean_reward:+.3f}"
+            f" R̄ {candidate.overall_normalized_reward:+.3f}"
         ]
         for result in candidate.own:
             lines.append(f"  own {result.maze}")
             lines.append(f"    reached {_flags(result.success)}")
-            lines.append(f"    R̄       {_numbers(result.paper_reward)}")
+            lines.append(f"    R̄       {_numbers(result.normalized_reward)}")
             lines.append(f"    steps   {' '.join(str(s) for s in result.steps)}")
         for result in candidate.others:
             lines.append(
                 f"  on {result.maze}: success {result.success_rate:.2f},"
-                f" R̄ {result.mean_reward:+.3f}"
+                f" R̄ {result.normalized_reward_mean:+.3f}"
             )
         lines.append(
             f"  lineage {list(candidate.lineage)}, {candidate.env_steps} steps"

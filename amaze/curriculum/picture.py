@@ -114,7 +114,7 @@ def render_curriculum(
                     draw.text((x1 - 28, y1 + 17), "final", fill=FINAL, font=small)
             caption = f"b{candidate.branch}: success {candidate.success_rate:.2f}"
             draw.text((x0, y1 + 4), caption, fill=TEXT, font=small)
-            draw.text((x0, y1 + 17), f"Rbar {candidate.mean_reward:+.2f}", fill=TEXT, font=small)
+            draw.text((x0, y1 + 17), f"R̄ {candidate.normalized_reward:+.2f}", fill=TEXT, font=small)
             details = f"{_fields(spec)}, {_count(candidate.env_steps)} st"
             draw.text((x0, y1 + 30), details, fill=TEXT, font=small)
         if row + 1 < len(records) and records[row + 1].stage > record.stage + 1:
@@ -156,7 +156,7 @@ def save_curriculum_progress(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from amaze.curriculum.genome import difficulty
+    from amaze.curriculum.difficulty import difficulty
 
     steps, spent = [], 0
     for record in records:
@@ -237,7 +237,7 @@ def render_population(population: MazePopulation, title: str = "") -> Image.Imag
         y1 = y0 + THUMBNAIL
         draw.text((x0, y1 + 4), f"#{record.id} {_fields(spec)}", fill=TEXT, font=small)
         draw.text((x0, y1 + 17), f"score {record.score:.3f}", fill=TEXT, font=small)
-        caption = f"success {record.success:.2f} d {record.difficulty:.1f}"
+        caption = f"success {record.success_rate:.2f} d {record.difficulty:.1f}"
         draw.text((x0, y1 + 30), caption, fill=TEXT, font=small)
     return image
 

@@ -90,7 +90,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
-from amaze.curriculum.genome import SEED_RANGE, MazeGenome, SignSet, difficulty, new_seed
+from amaze.curriculum.difficulty import difficulty
+from amaze.curriculum.genome import SEED_RANGE, MazeGenome, SignSet, new_seed
 from amaze.curriculum.interpolation import TRIVIAL_SIDE, curriculum
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
 from amaze.validation import check_integer, check_number
@@ -144,12 +145,12 @@ def best_candidate(
 
 def own_score(candidate: Candidate) -> tuple[float, float]:
     """Success, then R̄, on the candidate's own mazes."""
-    return candidate.success_rate, candidate.mean_reward
+    return candidate.success_rate, candidate.normalized_reward
 
 
 def overall_score(candidate: Candidate) -> tuple[float, float]:
     """Success, then R̄, on every maze of the stage."""
-    return candidate.overall_success_rate, candidate.overall_mean_reward
+    return candidate.overall_success_rate, candidate.overall_normalized_reward
 
 
 def reseeded(spec: MazeSpec, seeds: Sequence[int]) -> list[str]:
@@ -179,7 +180,7 @@ def hardest_score(candidates: Sequence[Candidate]) -> Callable[[Candidate], tupl
 
     def key(candidate: Candidate) -> tuple[float, ...]:
         on = [r for r in (*candidate.own, *candidate.others) if r.maze == hardest]
-        first = (on[0].success_rate, on[0].mean_reward) if on else own_score(candidate)
+        first = (on[0].success_rate, on[0].normalized_reward_mean) if on else own_score(candidate)
         return (*first, *overall_score(candidate))
 
     return key

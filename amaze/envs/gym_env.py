@@ -11,7 +11,7 @@ in one maze with the reference wrapper's spaces (``docs/reference-behaviour.md``
 * ``reset(options={"maze": STRING})`` switches to another maze for the next episodes
   (``options`` is a dict or None; an unknown key is an error naming it);
 * ``info`` holds the episode statistics and, at the end of an episode, both
-  normalised rewards (``pretty_reward``, the reference's, and ``paper_reward``,
+  normalised rewards (``pretty_reward``, the reference's, and ``normalized_reward``,
   the paper's R̄).
 
 Options are checked when the environment is made (:class:`~amaze.errors.OptionError`
@@ -46,7 +46,7 @@ from amaze.agents.rewards import (
     DEFAULT_DEADLINE_FACTOR,
     RewardScheme,
     check_deadline_factor,
-    paper_reward,
+    normalized_reward,
     pretty_reward,
 )
 from amaze.agents.robot import Robot, as_robot
@@ -281,7 +281,7 @@ class MazeEnv(gymnasium.Env):
         }
         if sim.done():
             info["pretty_reward"] = sim.pretty_reward()
-            info["paper_reward"] = sim.paper_reward()
+            info["normalized_reward"] = sim.normalized_reward()
         return info
 
     def _grid_info(self, grid: _GridMaze, success: bool, ended: bool) -> dict[str, Any]:
@@ -297,7 +297,7 @@ class MazeEnv(gymnasium.Env):
         }
         if ended:
             info["pretty_reward"] = pretty_reward(self._return, grid.scheme)
-            info["paper_reward"] = paper_reward(
+            info["normalized_reward"] = normalized_reward(
                 success, t, self._collisions, self._backsteps, grid.path_length, 1.0
             )
         return info

@@ -125,7 +125,7 @@ class MazeVectorEnv(VectorEnv):
                 ("len", episodes.path_length),
                 ("cumulative_reward", episodes.cumulative_reward),
                 ("pretty_reward", episodes.pretty_rewards()),
-                ("paper_reward", episodes.paper_rewards()),
+                ("normalized_reward", episodes.normalized_rewards()),
             ):
                 column = np.zeros(self.num_envs, dtype=np.asarray(values).dtype)
                 column[episodes.agents] = values

@@ -98,7 +98,7 @@ class EpisodeResults:
     :class:`~amaze.evaluation.protocol.EpisodeResult`, one episode with its maze.
 
     ``cumulative_reward`` is the reference's raw return; ``pretty_reward`` its
-    normalisation to [-1, 1]; ``paper_reward`` the paper's R̄ (1 for an optimal run).
+    normalisation to [-1, 1]; ``normalized_reward`` the paper's R̄ (1 for an optimal run).
     """
 
     maze_index: np.ndarray
@@ -109,7 +109,7 @@ class EpisodeResults:
     path_length: np.ndarray
     cumulative_reward: np.ndarray
     pretty_reward: np.ndarray
-    paper_reward: np.ndarray
+    normalized_reward: np.ndarray
 
     def __len__(self) -> int:
         return int(self.success.shape[0])
@@ -176,7 +176,7 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
     return EpisodeResults(
         maze_index=engine.assignment,
         pretty_reward=scored.pretty_rewards(),
-        paper_reward=scored.paper_rewards(),
+        normalized_reward=scored.normalized_rewards(),
         **fields,
     )
 
@@ -228,7 +228,7 @@ def record_episode(
                     path_length=episodes.path_length.copy(),
                     cumulative_reward=episodes.cumulative_reward.copy(),
                     pretty_reward=episodes.pretty_rewards(),
-                    paper_reward=episodes.paper_rewards(),
+                    normalized_reward=episodes.normalized_rewards(),
                 ),
                 trajectory,
             )

@@ -8,7 +8,7 @@ input-recognition test (:mod:`amaze.evaluation.inputs`) with the suite's signs. 
 returns an :class:`EvaluationReport`:
 
 * ``success_rate``: fraction of episodes that reached the goal;
-* ``paper_reward``: mean of the paper's normalised reward R̄ (1 for an optimal
+* ``normalized_reward``: mean of the paper's normalised reward R̄ (1 for an optimal
   run; the score of the paper's result tables). Run folders store it as
   ``normalized_reward``, the one renaming, made by :meth:`EvaluationReport.summary`;
 * ``pretty_reward``: mean of the reference library's normalised reward;
@@ -82,7 +82,7 @@ class EpisodeResult:
     Unlike :class:`~amaze.evaluation.policy.EpisodeResults` (arrays, one
     finished episode per agent of a run), it is one episode of one agent, in
     plain values, labelled by its maze string, suite column and row, and start
-    corner; ``paper_reward`` is the paper's R̄ of the episode. ``maze`` is the
+    corner; ``normalized_reward`` is the paper's R̄ of the episode. ``maze`` is the
     maze played (a rotation, when rotations are played); for mazes outside the
     suite, ``column`` is the maze as it was given (its canonical string, shared
     by its rotations) and ``row`` is empty.
@@ -93,7 +93,7 @@ class EpisodeResult:
     row: str
     start: str
     success: bool
-    paper_reward: float
+    normalized_reward: float
     pretty_reward: float
     steps: int
     collisions: int
@@ -121,8 +121,8 @@ class EvaluationReport:
         return _mean([float(e.success) for e in self.episodes])
 
     @property
-    def paper_reward(self) -> float:
-        return _mean([e.paper_reward for e in self.episodes])
+    def normalized_reward(self) -> float:
+        return _mean([e.normalized_reward for e in self.episodes])
 
     @property
     def pretty_reward(self) -> float:
@@ -146,7 +146,7 @@ class EvaluationReport:
             group: {
                 "episodes": len(items),
                 "success_rate": _mean([float(e.success) for e in items]),
-                "paper_reward": _mean([e.paper_reward for e in items]),
+                "normalized_reward": _mean([e.normalized_reward for e in items]),
                 "pretty_reward": _mean([e.pretty_reward for e in items]),
                 "mean_steps": _mean([float(e.steps) for e in items]),
             }
@@ -166,7 +166,7 @@ class EvaluationReport:
     def summary(self) -> dict[str, Any]:
         """The aggregated figures, JSON-ready (the keys of a run folder's ``summary.json``).
 
-        The paper's R̄ is ``paper_reward`` everywhere in code but
+        The paper's R̄ is ``normalized_reward`` everywhere in code but
         ``normalized_reward`` in this dict: the key that ``summary.json`` files
         have always used, a file contract that must stay. This is the one place
         where the name changes; everything that writes or reads a summary
@@ -180,7 +180,7 @@ class EvaluationReport:
             "episodes": len(self.episodes),
             "rotations": self.rotations,
             "success_rate": self.success_rate,
-            "normalized_reward": self.paper_reward,
+            "normalized_reward": self.normalized_reward,
             "pretty_reward": self.pretty_reward,
             "input_recognition": self.input_recognition,
             "input_rates": dict(self.input_rates),
@@ -210,7 +210,7 @@ class EvaluationReport:
         )
         lines = [
             f"{len(self.episodes)} episodes ({self.robot}): success {100 * self.success_rate:.1f}%,"
-            f" mean R̄ {self.paper_reward:+.3f}, mean pretty reward {self.pretty_reward:+.3f},"
+            f" mean R̄ {self.normalized_reward:+.3f}, mean pretty reward {self.pretty_reward:+.3f},"
             f" input recognition {recognition}",
             f"  {self.played()}",
         ]
@@ -223,7 +223,7 @@ class EvaluationReport:
         for name, scores in columns.items():
             lines.append(
                 f"  {name:<{width}} {100 * scores['success_rate']:7.1f}%"
-                f" {scores['paper_reward']:+8.3f} {scores['pretty_reward']:+8.3f}"
+                f" {scores['normalized_reward']:+8.3f} {scores['pretty_reward']:+8.3f}"
             )
         return "\n".join(lines)
 
@@ -329,7 +329,7 @@ class Evaluator:
                 row=self.labels[k][1],
                 start=self.starts[k],
                 success=bool(results.success[k]),
-                paper_reward=float(results.paper_reward[k]),
+                normalized_reward=float(results.normalized_reward[k]),
                 pretty_reward=float(results.pretty_reward[k]),
                 steps=int(results.steps[k]),
                 collisions=int(results.collisions[k]),

@@ -36,6 +36,8 @@ the ``amaze`` command prints it as one ``error:`` line.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import importlib.util
 import itertools
 import os
 from collections.abc import Sequence
@@ -609,15 +611,31 @@ def render_mazes_grid(
 
 
 def load_font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
-    """Pillow's default font at ``size`` px (its bitmap font where FreeType is missing).
+    """DejaVu Sans at ``size`` px: the one font of every picture the package draws.
 
-    The one font of every picture the package draws (mazes, trajectories,
-    input recognition, curricula), so captions look alike everywhere.
+    Mazes, trajectories, input recognition, curricula: captions look alike
+    everywhere, and R̄ (an R and a combining macron, which Pillow's own font
+    lacks) is drawn as R̄. The font file is the one matplotlib ships (a
+    dependency; it is found without importing matplotlib); without it,
+    Pillow's default font (its bitmap font where FreeType is missing).
     """
+    path = _dejavu_sans()
     try:
+        if path is not None:
+            return ImageFont.truetype(str(path), size=size)
         return ImageFont.load_default(size=size)
     except (TypeError, ImportError, OSError):  # pragma: no cover - Pillow without FreeType
         return ImageFont.load_default()
+
+
+@functools.cache
+def _dejavu_sans() -> Path | None:
+    """matplotlib's DejaVu Sans, if installed."""
+    spec = importlib.util.find_spec("matplotlib")
+    if spec is None or spec.origin is None:
+        return None
+    path = Path(spec.origin).parent / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
+    return path if path.is_file() else None
 
 
 def _text_height(font: Any) -> int:

@@ -22,7 +22,20 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ProgressLog", "read_text", "write_bytes", "write_json"]
+__all__ = ["OLD_COLUMNS", "ProgressLog", "read_text", "write_bytes", "write_json"]
+
+#: Columns of ``progress.csv`` files written before R̄ and the success rate had one
+#: name everywhere, and their names now: such a log is read as if written today
+#: (and rewritten so by a resume).
+OLD_COLUMNS = {
+    "rbar": "normalized_reward",
+    "success": "success_rate",
+    "eval_rbar": "eval_normalized_reward",
+    "eval_success": "eval_success_rate",
+    "batch_success": "batch_success_rate",
+    "validation_success": "validation_success_rate",
+    "champion_success": "champion_success_rate",
+}
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
@@ -79,7 +92,10 @@ class ProgressLog:
         if not self.path.exists():
             return []
         with self.path.open(newline="") as stream:
-            return list(csv.DictReader(stream))
+            return [
+                {OLD_COLUMNS.get(key, key): value for key, value in row.items()}
+                for row in csv.DictReader(stream)
+            ]
 
     def checked_rows(self, position_field: str, error: type[ValueError]) -> list[dict[str, str]]:
         """Every row, after checking the file is this log; raise ``error`` naming it otherwise.
@@ -98,6 +114,8 @@ class ProgressLog:
         if lines and not lines[-1].endswith("\n"):
             lines.pop()
         records = list(csv.reader(lines))
+        if records:
+            records[0] = [OLD_COLUMNS.get(name, name) for name in records[0]]
         if not records or tuple(records[0]) != self.fields:
             raise error(
                 f"progress log {where} does not start with the header {','.join(self.fields)}"

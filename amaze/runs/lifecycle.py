@@ -60,7 +60,15 @@ from typing import Any, ClassVar
 from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import ProgressLog, write_json
 
-__all__ = ["CONFIG_FILE", "LOG_FILE", "SUMMARY_FILE", "Run", "RunResult", "frozen_heap"]
+__all__ = [
+    "CONFIG_FILE",
+    "LOG_FILE",
+    "SUMMARY_FILE",
+    "Run",
+    "RunResult",
+    "check_digest",
+    "frozen_heap",
+]
 
 CONFIG_FILE = "config.json"
 SUMMARY_FILE = "summary.json"
@@ -92,6 +100,20 @@ def frozen_heap() -> Iterator[None]:
         yield
     finally:
         gc.unfreeze()
+
+
+def check_digest(recorded: object, digest: str, where: str, error: type[ValueError]) -> None:
+    """Refuse a file (``where``) whose config digest ``recorded`` is not the run's ``digest``.
+
+    ``recorded`` is the digest the file holds (:attr:`Run.config_digest`, a
+    SHA-256 of ``config.json`` without its budgets); ``None``, a file of an
+    older version, which recorded none, is accepted.
+    """
+    if recorded is not None and recorded != digest:
+        raise error(
+            f"{where} was written under another config.json: the run's config.json changed"
+            " since (put it back, or start a new run)"
+        )
 
 
 @dataclass(frozen=True)
@@ -263,16 +285,8 @@ class Run(ABC):
         return hashlib.sha256(json.dumps(kept, sort_keys=True).encode("utf-8")).hexdigest()
 
     def check_config_digest(self, recorded: object, where: str) -> None:
-        """Refuse a file (``where``) written under another ``config.json`` than the folder's.
-
-        ``recorded`` is the digest the file holds (``None``: a file of an
-        older version, which recorded none, is accepted).
-        """
-        if recorded is not None and recorded != self.config_digest:
-            raise self.config.error(
-                f"{where} was written under another config.json: {str(self.out / CONFIG_FILE)!r}"
-                " changed since (put it back, or start a new run)"
-            )
+        """Refuse a file (``where``) written under another ``config.json`` than the folder's."""
+        check_digest(recorded, self.config_digest, where, self.config.error)
 
     # -- the lifecycle ----------------------------------------------------------
 

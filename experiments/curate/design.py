@@ -17,7 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from amaze.curriculum.genome import difficulty_profile, maze_distance, new_seed
+from amaze.curriculum.difficulty import difficulty_profile
+from amaze.curriculum.distance import maze_distance
+from amaze.curriculum.genome import new_seed
 from amaze.errors import AmazeError, MazeStringWarning, one_line
 from amaze.maze.maze import Maze
 from amaze.maze.metrics import compute_metrics

@@ -197,7 +197,7 @@ def _record(maze: str, robot: str, agent: Any, gif: Path) -> dict[str, Any]:
         "success": bool(results.success[0]),
         "steps": int(results.steps[0]),
         "collisions": int(results.collisions[0]),
-        "paper_reward": round(float(results.paper_reward[0]), 4),
+        "normalized_reward": round(float(results.normalized_reward[0]), 4),
     }
 
 

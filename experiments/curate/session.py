@@ -31,7 +31,8 @@ from typing import Any
 from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History, MazeResults
 from amaze.curriculum.human import suggested_mazes
 from amaze.errors import AmazeError, one_line
-from amaze.runs.curriculum import BranchProgress, CurriculumRun, branch_folder
+from amaze.runs.branches import BranchProgress, branch_folder
+from amaze.runs.curriculum import CurriculumRun
 from amaze.runs.lifecycle import RunResult
 from experiments.curate.design import DesignError, maze_card, parse_maze
 
@@ -83,10 +84,10 @@ def _results(result: MazeResults, index: int) -> dict[str, Any]:
         "maze": result.maze,
         "index": index,
         "success": list(result.success),
-        "paper_reward": [round(v, 4) for v in result.paper_reward],
+        "normalized_reward": [round(v, 4) for v in result.normalized_reward],
         "steps": list(result.steps),
         "success_rate": result.success_rate,
-        "mean_reward": round(result.mean_reward, 4),
+        "normalized_reward_mean": round(result.normalized_reward_mean, 4),
     }
 
 
@@ -103,9 +104,9 @@ def candidate_view(candidate: Candidate, stage_mazes: Sequence[str]) -> dict[str
         "branch": candidate.branch,
         "maze": candidate.mazes[0],
         "success_rate": candidate.success_rate,
-        "mean_reward": round(candidate.mean_reward, 4),
+        "normalized_reward": round(candidate.normalized_reward, 4),
         "overall_success_rate": candidate.overall_success_rate,
-        "overall_mean_reward": round(candidate.overall_mean_reward, 4),
+        "overall_normalized_reward": round(candidate.overall_normalized_reward, 4),
         "solved_mazes": sum(r.solved for r in results),
         "results": by_maze,
         "lineage": list(candidate.lineage),
@@ -181,7 +182,7 @@ class CurationSession:
                     raise self.config.error(
                         f"curator {self.config.curator!r}: a browser session's curator is human"
                     )
-                self.curator = BrowserCurator(session, self.config.curator_context())
+                self.decided.curator = BrowserCurator(session, self.config.curator_context())
                 session._attach(self)
 
             def branch_progress(self, progress: BranchProgress) -> None:
@@ -424,7 +425,7 @@ class CurationSession:
                 "forced": d.forced,
                 "replayed": d.replayed,
             }
-            for d in list(run.recorded)
+            for d in list(run.decided.recorded)
         ]
         stages = [
             {
@@ -432,7 +433,7 @@ class CurationSession:
                 "mazes": list(record.mazes),
                 "selected": record.selected,
                 "success": [round(c.success_rate, 3) for c in record.candidates],
-                "mean_reward": [round(c.mean_reward, 3) for c in record.candidates],
+                "normalized_reward": [round(c.normalized_reward, 3) for c in record.candidates],
             }
             for record in list(run.records)
         ]

@@ -213,7 +213,7 @@ def test_the_amaze_command_runs_saved_agents(tmp_path, capsys):
     path = save_network_agent(tmp_path / "champion", spec, clue_follower(spec))
     assert main(["run", "M4_10x10_C1", "--controller", str(path), "--json"]) == 0
     outcome = json.loads(capsys.readouterr().out)
-    assert outcome["success"] is True and outcome["paper_reward"] == pytest.approx(1.0)
+    assert outcome["success"] is True and outcome["normalized_reward"] == pytest.approx(1.0)
     assert main(["inputs", "--controller", str(path)]) == 0
     assert capsys.readouterr().out.startswith("140 inputs (DD, ")
     assert main(["suite", "--evaluate", str(path)]) == 0
@@ -236,7 +236,7 @@ def test_loaded_agents_go_through_the_evaluation_protocol(tmp_path):
     mazes = rotations("M4_6x6_C1")
     report = Evaluator("H7", mazes).evaluate(agent)
     direct = Evaluator("H7", mazes).evaluate(spec.population(params[None]))
-    assert report.paper_reward == direct.paper_reward
+    assert report.normalized_reward == direct.normalized_reward
     assert report.input_recognition == direct.input_recognition is not None
 
 

@@ -42,10 +42,10 @@ def _population(algo: str, size: int, seed: int = 0):
 
 
 def _assert_same(a: PopulationResult, b: PopulationResult) -> None:
-    for name in ("fitness", "success_rate", "paper_reward", "pretty_reward"):
+    for name in ("fitness", "success_rate", "normalized_reward", "pretty_reward"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert a.env_steps == b.env_steps
-    for name in ("steps", "paper_reward", "pretty_reward", "success"):
+    for name in ("steps", "normalized_reward", "pretty_reward", "success"):
         np.testing.assert_array_equal(a.per_episode(name), b.per_episode(name), err_msg=name)
 
 
@@ -168,10 +168,10 @@ def test_ray_scores_are_the_local_scores(ray_backend: RayBackend, algo: str, siz
     assert evaluator.n_episodes == 12
     _assert_same(evaluator.evaluate(policy), local)
     _assert_same(evaluator.evaluate(policy), local)  # again, from the actors' engines
-    other = ray_backend.evaluator(ROTATED, "DD", fitness="success")  # a new maze set
+    other = ray_backend.evaluator(ROTATED, "DD", fitness="success_rate")  # a new maze set
     _assert_same(
         other.evaluate(policy),
-        PopulationEvaluator(ROTATED, "DD", fitness="success").evaluate(policy),
+        PopulationEvaluator(ROTATED, "DD", fitness="success_rate").evaluate(policy),
     )
 
 

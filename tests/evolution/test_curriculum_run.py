@@ -71,7 +71,7 @@ def test_an_edhucat_run_writes_its_folder(
             load_agent(folder / "agent" / "champion.npz")  # an agent file amaze run can play
     summary = json.loads((finished / "summary.json").read_text())
     assert summary["regime"] == "edhucat" and summary["curator"] == "random"
-    assert summary["algo"] == "cmaes" and summary["fitness_measure"] == "paper_reward"
+    assert summary["algo"] == "cmaes" and summary["fitness_measure"] == "normalized_reward"
     assert summary["generations"] >= 3 and summary["lineage_generations"] >= 2
     assert summary["policy_steps_per_second"] > 0
     assert summary["env_steps"] >= 60000 * 0.9 and len(summary["curriculum"]) == 2

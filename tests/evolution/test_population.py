@@ -101,13 +101,13 @@ def test_population_scores_equal_separate_evaluations(evaluator, build):
     total_steps = 0
     for p in range(6):
         report = reference.evaluate(ReferenceMLP(spec, params[p]))
-        assert result.paper_reward[p] == pytest.approx(report.paper_reward, abs=1e-12)
+        assert result.normalized_reward[p] == pytest.approx(report.normalized_reward, abs=1e-12)
         assert result.pretty_reward[p] == pytest.approx(report.pretty_reward, abs=1e-12)
         assert result.success_rate[p] == pytest.approx(report.success_rate, abs=1e-12)
         steps = [e.steps for e in report.episodes]
         np.testing.assert_array_equal(result.per_episode("steps")[p], steps)
         total_steps += sum(steps)
-    np.testing.assert_array_equal(result.fitness, result.paper_reward)
+    np.testing.assert_array_equal(result.fitness, result.normalized_reward)
     assert result.env_steps == total_steps == result.episodes.steps.sum()
     assert result.seconds > 0
     # individuals differ, so that a mix-up between them would show
@@ -127,7 +127,8 @@ def test_hand_built_networks_act_like_amaze_controllers(evaluator):
     for p, controller in enumerate(controllers):
         report = reference.evaluate(controller)
         np.testing.assert_array_equal(
-            result.per_episode("paper_reward")[p], [e.paper_reward for e in report.episodes]
+            result.per_episode("normalized_reward")[p],
+            [e.normalized_reward for e in report.episodes],
         )
         np.testing.assert_array_equal(
             result.per_episode("collisions")[p], [e.collisions for e in report.episodes]
@@ -141,7 +142,9 @@ def test_clue_following_network_scores_like_the_oracle():
     result = clue_evaluator.evaluate(policy)
     oracle = Evaluator("DD", rotations(CLUE_MAZES), inputs=False).evaluate(OracleController("DD"))
     assert result.success_rate[0] == 1.0 and oracle.success_rate == 1.0
-    assert result.paper_reward[0] == pytest.approx(oracle.paper_reward) == pytest.approx(1.0)
+    assert (
+        result.normalized_reward[0] == pytest.approx(oracle.normalized_reward) == pytest.approx(1.0)
+    )
     assert result.env_steps == sum(e.steps for e in oracle.episodes)
 
 
@@ -159,7 +162,14 @@ def test_skipping_retired_agents_changes_nothing(p_count, mazes):
         return population(observations)
 
     plain = run_episodes(engine, without_retire)
-    for name in ("success", "steps", "collisions", "backsteps", "paper_reward", "pretty_reward"):
+    for name in (
+        "success",
+        "steps",
+        "collisions",
+        "backsteps",
+        "normalized_reward",
+        "pretty_reward",
+    ):
         np.testing.assert_array_equal(getattr(with_skipping, name), getattr(plain, name))
     assert len(np.unique(plain.steps)) > 2 and 0 < plain.success.mean() < 1
 
@@ -172,7 +182,7 @@ def test_results_are_deterministic_and_split_populations_join(evaluator):
     again = PopulationEvaluator(MAZES, "DD", rotations=True).evaluate(
         pickle.loads(pickle.dumps(population))
     )
-    for name in ("fitness", "success_rate", "paper_reward", "pretty_reward"):
+    for name in ("fitness", "success_rate", "normalized_reward", "pretty_reward"):
         np.testing.assert_array_equal(getattr(first, name), getattr(again, name))
     assert first.env_steps == again.env_steps
     parts = [evaluator.evaluate(population.subset(i)) for i in ([0, 1], [2], [3, 4])]
@@ -188,11 +198,11 @@ def test_fitness_choices(evaluator):
     spec = NetworkSpec("DD", (4,))
     population = spec.population(spec.initial_params(rng, 3) * 3)
     by_reward = evaluator.evaluate(population)
-    success = PopulationEvaluator(MAZES, "DD", rotations=True, fitness="success")
+    success = PopulationEvaluator(MAZES, "DD", rotations=True, fitness="success_rate")
     pretty = PopulationEvaluator(MAZES, "DD", rotations=True, fitness="pretty_reward")
     np.testing.assert_array_equal(success.evaluate(population).fitness, by_reward.success_rate)
     np.testing.assert_array_equal(pretty.evaluate(population).fitness, by_reward.pretty_reward)
-    assert by_reward.best == int(np.argmax(by_reward.paper_reward))
+    assert by_reward.best == int(np.argmax(by_reward.normalized_reward))
 
 
 def test_image_robot_populations(evaluator):

@@ -152,7 +152,7 @@ def test_the_report_shows_the_table_the_paper_the_figures_and_the_compute(
     ("header", "rows", "config", "expected"),
     [
         (  # the direct RL run: its evaluations
-            "steps,seconds,eval_success,eval_rbar",
+            "steps,seconds,eval_success_rate,eval_normalized_reward",
             ["0,1.0,0.0,-5", "100,2.0,0.5,-1"],
             {},
             {"steps": [0, 100], "seconds": [1, 2], "success": [0, 0.5], "rbar": [-5, -1]},
@@ -166,7 +166,7 @@ def test_the_report_shows_the_table_the_paper_the_figures_and_the_compute(
         (  # direct evolution: the champion's fitness, R̄ when that is the measure
             "generation,steps,seconds,best,mean,champion,eval_seconds",
             ["1,10,0.1,-3,-4,-3,0.05", "2,20,0.2,-1,-2,-1,0.05"],
-            {"fitness": "paper_reward"},
+            {"fitness": "normalized_reward"},
             {"steps": [10, 20], "seconds": [0.1, 0.2], "rbar": [-3, -1]},
         ),
         (  # direct evolution on another measure: no curve of R̄ or success

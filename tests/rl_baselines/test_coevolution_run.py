@@ -49,7 +49,7 @@ def test_a_coevolution_run_writes_its_folder(finished: Path) -> None:
     summary = json.loads((finished / "summary.json").read_text())
     assert summary["regime"] == "coevolution" and summary["rounds"] == 6
     assert summary["env_steps"] == 120 and summary["validation_steps"] > 0
-    assert 0 <= summary["unseen_success"] <= 1
+    assert 0 <= summary["unseen_success_rate"] <= 1
     config = json.loads((finished / "config.json").read_text())
     assert config["coevolution"]["batch"] == 1  # n_envs 4: one maze per round
     mazes = _rows(finished, "mazes.csv")

@@ -11,7 +11,7 @@ import torch
 
 import rl_baselines.learner as learner_module
 from amaze.maze import rotations
-from amaze.runs.curriculum import CurriculumConfig
+from amaze.runs.regime import RegimeConfig
 from rl_baselines import RLConfigError
 from rl_baselines.config import MIN_N_STEPS, TrainConfig, fitted_hyperparameters
 from rl_baselines.learner import SB3Learner, load_sb3_learner, new_sb3_model
@@ -265,7 +265,7 @@ def test_fitted_rollouts_fit_the_first_allowance() -> None:
     assert fitted(algo="a2c", **seconds) == {"n_steps": 5}
     both = {**tiny, "budget_seconds": 60}  # with both, the steps allowance still fits it
     assert fitted(algo="ppo", **both) == {"n_steps": MIN_N_STEPS, "batch_size": 4 * MIN_N_STEPS}
-    assert isinstance(TrainConfig(), CurriculumConfig)
+    assert isinstance(TrainConfig(), RegimeConfig)
 
 
 @pytest.mark.parametrize(

@@ -55,7 +55,7 @@ CASES = {
     "progress wrong header": ("progress.csv", write(b"a,b\n1,2\n"), "header"),
     "progress bad steps": (
         "progress.csv",
-        write(b"steps,seconds,eval_success,eval_rbar\nmany,0,0,0\n"),
+        write(b"steps,seconds,eval_success_rate,eval_normalized_reward\nmany,0,0,0\n"),
         "steps 'many'",
     ),
     "model missing": (MODEL, missing, "is missing"),

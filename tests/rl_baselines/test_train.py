@@ -235,7 +235,7 @@ def test_tensorboard_logs_in_the_run_folder(tmp_path: Path) -> None:
     events = EventAccumulator(str(logs[0].parent))
     events.Reload()
     assert "eval/success_rate" in events.Tags()["scalars"]
-    steps = [e.step for e in events.Scalars("eval/rbar")]
+    steps = [e.step for e in events.Scalars("eval/normalized_reward")]
     assert steps == sorted(steps) and steps[0] == 0
 
 

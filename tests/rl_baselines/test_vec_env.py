@@ -67,7 +67,7 @@ def test_steps_match_native_vector_env(robot: str) -> None:
             assert info["TimeLimit.truncated"] == bool(trunc[k] and not term[k])
             final = ref_infos["final_info"]
             assert info["success"] == bool(final["success"][k])
-            assert info["paper_reward"] == pytest.approx(final["paper_reward"][k])
+            assert info["normalized_reward"] == pytest.approx(final["normalized_reward"][k])
             assert info["pretty_reward"] == pytest.approx(final["pretty_reward"][k])
             assert info["episode"]["l"] == int(final["steps"][k])
             truncated_seen += info["TimeLimit.truncated"]

@@ -208,9 +208,9 @@ function candidateCard(question, c) {
       el("span", { class: c.success_rate === 1 ? "pill good" : "pill" }, `${fixed(100 * c.success_rate, 0)}% on its maze`)),
     el("table", { class: "figures" },
       el("tr", {}, el("th", { text: "success, its maze" }), el("td", { text: fixed(c.success_rate) })),
-      el("tr", {}, el("th", { text: "R̄, its maze" }), el("td", { text: signed(c.mean_reward, 3) })),
+      el("tr", {}, el("th", { text: "R̄, its maze" }), el("td", { text: signed(c.normalized_reward, 3) })),
       el("tr", {}, el("th", { text: "success, all the stage's mazes" }), el("td", { text: fixed(c.overall_success_rate) })),
-      el("tr", {}, el("th", { text: "R̄, all the stage's mazes" }), el("td", { text: signed(c.overall_mean_reward, 3) })),
+      el("tr", {}, el("th", { text: "R̄, all the stage's mazes" }), el("td", { text: signed(c.overall_normalized_reward, 3) })),
       el("tr", {}, el("th", { text: "env steps (lineage)" }), el("td", { text: `${count(c.env_steps)} (${count(c.lineage_steps)})` })),
       el("tr", {}, el("th", { text: "converged" }), el("td", { text: c.converged ? "yes" : "no" })),
       el("tr", {}, el("th", { text: "lineage" }), el("td", { text: c.lineage.join(" → ") }))),
@@ -224,12 +224,12 @@ function candidateCard(question, c) {
 function episodeTile(stage, branch, result) {
   const own = result.index === branch;
   const rotations = result.success.map((ok, k) =>
-    el("span", { class: ok ? "dot good" : "dot bad", title: `rotation ${k}: ${ok ? "reached" : "not reached"}, R̄ ${signed(result.paper_reward[k])}, ${result.steps[k]} steps` }));
+    el("span", { class: ok ? "dot good" : "dot bad", title: `rotation ${k}: ${ok ? "reached" : "not reached"}, R̄ ${signed(result.normalized_reward[k])}, ${result.steps[k]} steps` }));
   const figure = el("figure", { class: own ? "episode own" : "episode" },
     el("div", { class: "animation loading", text: "playing…" }),
     el("figcaption", {},
       el("div", {}, own ? el("strong", { text: "its maze" }) : `branch ${result.index}'s maze`),
-      el("div", { class: "rotations" }, rotations, ` R̄ ${signed(result.mean_reward)}`),
+      el("div", { class: "rotations" }, rotations, ` R̄ ${signed(result.normalized_reward_mean)}`),
       el("div", { class: "muted episode-figures" })));
   fetch(`/api/episode/${stage}/${branch}/${result.index}`, { cache: "no-store" })
     .then((response) => response.json().then((data) => ({ ok: response.ok, data })))

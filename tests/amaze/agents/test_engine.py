@@ -70,7 +70,7 @@ def test_optimal_runs_dd(reference: dict[str, Any]) -> None:
         assert episodes.backsteps[0] == infos["backsteps"]
         assert episodes.success[0] and episodes.path_length[0] == infos["len"]
         assert episodes.pretty_rewards()[0] == run["normalized_reward"] == 1.0
-        assert episodes.paper_rewards()[0] == pytest.approx(1.0)
+        assert episodes.normalized_rewards()[0] == pytest.approx(1.0)
         np.testing.assert_array_equal(result.final_observations[0], result.observations[0])
 
 

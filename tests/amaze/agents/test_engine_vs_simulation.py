@@ -82,7 +82,9 @@ def test_engine_matches_simulation(robot, steps, parallel):
                 assert result.episodes.collisions[index] == sim.stats.collisions
                 assert result.episodes.backsteps[index] == sim.stats.backsteps
                 assert result.episodes.pretty_rewards()[index] == sim.pretty_reward()
-                assert result.episodes.paper_rewards()[index] == pytest.approx(sim.paper_reward())
+                assert result.episodes.normalized_rewards()[index] == pytest.approx(
+                    sim.normalized_reward()
+                )
                 sim.reset()
             else:
                 np.testing.assert_allclose(engine.positions[k], sim.position, rtol=0, atol=1e-12)

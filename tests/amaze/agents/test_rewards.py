@@ -7,8 +7,8 @@ import pytest
 
 from amaze.agents.rewards import (
     RewardScheme,
-    paper_reward,
-    paper_rewards,
+    normalized_reward,
+    normalized_rewards,
     pretty_reward,
     pretty_rewards,
     round_like_python,
@@ -26,11 +26,11 @@ def test_batched_rewards_equal_the_scalar_ones(dt: float, deadline_factor: float
     success = rng.random(n) < 0.5
     cumulative = rng.normal(0, 300, n)
     pretty = pretty_rewards(cumulative, length, dt, deadline_factor)
-    paper = paper_rewards(success, steps, collisions, backsteps, length, dt)
+    paper = normalized_rewards(success, steps, collisions, backsteps, length, dt)
     for k in range(n):
         scheme = RewardScheme(int(length[k]), dt, deadline_factor)
         assert pretty[k] == pretty_reward(float(cumulative[k]), scheme)
-        expected = paper_reward(
+        expected = normalized_reward(
             bool(success[k]), int(steps[k]), int(collisions[k]), int(backsteps[k]),
             int(length[k]), dt,
         )  # fmt: skip

@@ -42,7 +42,7 @@ def test_optimal_discrete_run(fixture):
     infos = sim.infos()
     assert {k: infos[k] for k in INFO_KEYS} == {k: run["infos"][k] for k in INFO_KEYS}
     assert sim.cumulative_reward == pytest.approx(fixture["path_length"])
-    assert sim.paper_reward() == pytest.approx(1.0)
+    assert sim.normalized_reward() == pytest.approx(1.0)
     assert infos["errors"]["clue"] == run["infos"]["errors"]["clue"]
 
 

@@ -67,7 +67,7 @@ def test_figures_are_those_of_the_python_protocol(capsys, tmp_path):
     )
     report = evaluate(RandomController("DD", seed=5), "DD", list(MAZES), rotations=4)
     assert outcome["success_rate"] == report.success_rate
-    assert outcome["normalized_reward"] == report.paper_reward
+    assert outcome["normalized_reward"] == report.normalized_reward
     assert outcome["mean_steps"] == report.mean_steps
     assert outcome["input_recognition"] == report.input_recognition
     with open(tmp_path / "e.csv", newline="") as handle:

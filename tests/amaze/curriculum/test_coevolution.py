@@ -81,9 +81,9 @@ def test_maze_results() -> None:
     success = np.array([[1, 0, 0, 0], [1, 1, 1, 1]])
     reward = np.array([[0.5, -1, -1, -1], [0.9, 0.7, 0.9, 0.7]])
     result = MazeResult.of(success, reward)
-    assert result.success == pytest.approx(5 / 8)
-    assert result.reward == pytest.approx(reward.mean())
-    assert result.best_reward == pytest.approx(0.8) and result.solved
+    assert result.success_rate == pytest.approx(5 / 8)
+    assert result.normalized_reward == pytest.approx(reward.mean())
+    assert result.best_normalized_reward == pytest.approx(0.8) and result.solved
     assert not MazeResult.of(np.zeros((2, 4)), np.zeros((2, 4))).solved
     with pytest.raises(CoevolutionError, match="shapes"):
         MazeResult.of(np.zeros(4), np.zeros(4))
@@ -112,7 +112,7 @@ def test_regret_is_the_best_reward_ever_minus_the_mean_reward_now() -> None:
     record = population.member_records()[0]
     assert record.score == pytest.approx(0.5 - (0.5 * 0.5 - 0.5))  # best 0.5, mean -0.25
     population.update([BatchMaze(record.maze, member=record.id)], [_result(0.25)])
-    assert record.best_reward == pytest.approx(0.5)  # the best ever is kept
+    assert record.best_normalized_reward == pytest.approx(0.5)  # the best ever is kept
     assert record.score == pytest.approx(0.5 - (0.25 * 0.5 - 0.75))
     assert record.plays == 2 and record.last_played == 2
 

@@ -21,7 +21,7 @@ from amaze.curriculum.curators import (
     curator_names,
     make_curator,
 )
-from amaze.curriculum.genome import difficulty
+from amaze.curriculum.difficulty import difficulty
 from amaze.curriculum.strategies import (
     CHALLENGES,
     CarefulCurator,
@@ -71,7 +71,7 @@ def results(maze: str, reached: int, reward: float = 0.0) -> MazeResults:
     return MazeResults(
         maze=maze,
         success=tuple(i < reached for i in range(4)),
-        paper_reward=(reward,) * 4,
+        normalized_reward=(reward,) * 4,
         steps=(10,) * 4,
     )
 

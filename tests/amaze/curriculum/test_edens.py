@@ -16,8 +16,9 @@ from amaze.curriculum.curators import (
     MazeResults,
     make_curator,
 )
+from amaze.curriculum.difficulty import difficulty
+from amaze.curriculum.distance import maze_distance
 from amaze.curriculum.edens import EdensCurator, pareto_front
-from amaze.curriculum.genome import difficulty, maze_distance
 from amaze.curriculum.validation import reserved_seeds, validation_mazes
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE, standard_suite
 from amaze.maze.spec import MazeSpec

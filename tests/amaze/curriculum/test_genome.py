@@ -13,19 +13,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from amaze.curriculum import GenomeError, MazeGenome, SignSet, difficulty, harder_or_equal
+from amaze.curriculum.difficulty import DIFFICULTY_WEIGHTS, DifficultyProfile, difficulty_profile
+from amaze.curriculum.distance import SEED_DISTANCE, distance_components, maze_distance
 from amaze.curriculum.genome import (
     _OPTIONS,
-    DIFFICULTY_WEIGHTS,
     OPERATOR_FIELDS,
-    SEED_DISTANCE,
     SEED_RANGE,
-    DifficultyProfile,
     add_signs,
-    difficulty_profile,
-    distance_components,
     lightness_down,
     lightness_up,
-    maze_distance,
     new_seed,
     new_start,
     probability_down,

@@ -164,7 +164,7 @@ def test_vector_same_step_autoreset(robot):
         np.testing.assert_array_equal(infos["_final_obs"], done)
         np.testing.assert_array_equal(infos["_final_info"], done)
         final_info = infos["final_info"]
-        for key in ("success", "steps", "pretty_reward", "paper_reward", "cumulative_reward"):
+        for key in ("success", "steps", "pretty_reward", "normalized_reward", "cumulative_reward"):
             np.testing.assert_array_equal(final_info[f"_{key}"], done)
             assert final_info[key].shape == (env.num_envs,)
         np.testing.assert_array_equal(final_info["success"][done], terminated[done])

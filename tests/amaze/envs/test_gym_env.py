@@ -52,7 +52,7 @@ def test_optimal_run_terminates_with_both_normalised_rewards():
         total += reward
         assert terminated == (k == len(actions) - 1) and not truncated
     assert total == pytest.approx(fixture["path_length"])
-    assert info["pretty_reward"] == 1.0 and info["paper_reward"] == pytest.approx(1.0)
+    assert info["pretty_reward"] == 1.0 and info["normalized_reward"] == pytest.approx(1.0)
     with pytest.raises(ValueError):  # no second finish bonus
         env.step(0)
 
@@ -139,7 +139,7 @@ def simulation_info(sim: Simulation) -> dict:
     }
     if sim.done():
         info["pretty_reward"] = sim.pretty_reward()
-        info["paper_reward"] = sim.paper_reward()
+        info["normalized_reward"] = sim.normalized_reward()
     return info
 
 

@@ -58,7 +58,7 @@ def test_vector_env_equals_single_envs(robot):
                 np.testing.assert_array_equal(infos["final_obs"][k], o)
                 final = infos["final_info"]
                 assert final["pretty_reward"][k] == info["pretty_reward"]
-                assert final["paper_reward"][k] == pytest.approx(info["paper_reward"])
+                assert final["normalized_reward"][k] == pytest.approx(info["normalized_reward"])
                 assert final["steps"][k] == info["steps"] and final["success"][k] == info["success"]
                 o, _ = env.reset()
             elif infos:

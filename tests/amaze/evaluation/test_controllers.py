@@ -196,7 +196,7 @@ def test_oracle_is_optimal_with_discrete_actions(robot: str) -> None:
     assert results.success.all()
     assert np.array_equal(results.steps, lengths - 1)
     assert (results.collisions == 0).all() and (results.backsteps == 0).all()
-    assert (results.paper_reward == 1.0).all()
+    assert (results.normalized_reward == 1.0).all()
     assert (results.cumulative_reward == lengths).all()  # the reference's optimal R = l
 
 
@@ -226,7 +226,7 @@ def test_oracle_reaches_the_goal_with_continuous_actions() -> None:
     assert (results.collisions == 0).all()  # it brakes before every turn
     # Top speed is one cell per 10 steps: well inside the deadline of 40 l steps.
     assert (results.steps < 20 * (results.path_length - 1)).all()
-    assert (results.paper_reward > 0).all()
+    assert (results.normalized_reward > 0).all()
 
 
 def test_oracle_trajectory_follows_the_solution() -> None:
@@ -236,7 +236,7 @@ def test_oracle_trajectory_follows_the_solution() -> None:
         cells = [(int(x), int(y)) for x, y in trajectory.positions]
         assert cells == list(maze.solution[:-1])
         assert trajectory.final_position == (maze.end[0] + 0.5, maze.end[1] + 0.5)
-        assert results.paper_reward[0] == 1.0
+        assert results.normalized_reward[0] == 1.0
 
 
 @pytest.mark.parametrize("robot", ["DD", "CC7"])
@@ -309,7 +309,7 @@ def test_tabular_training_learns_a_successful_greedy_policy(method: str, maze: s
     controller = train_tabular([maze], method=method, episodes=30, seed=0)
     results = run_episodes(BatchEngine([maze], "DD", 1), controller)
     assert results.success[0]
-    assert results.paper_reward[0] > 0.9
+    assert results.normalized_reward[0] > 0.9
 
 
 def test_tabular_training_cycles_through_mazes() -> None:

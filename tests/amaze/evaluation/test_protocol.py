@@ -22,7 +22,7 @@ def test_oracle_is_optimal_on_the_whole_suite(evaluator):
     report = evaluator.evaluate(OracleController("DD"))
     assert len(report.episodes) == 72
     assert report.success_rate == 1.0
-    assert report.paper_reward == pytest.approx(1.0)
+    assert report.normalized_reward == pytest.approx(1.0)
     assert report.pretty_reward == pytest.approx(1.0)
     for episode in report.episodes:
         assert episode.steps == episode.path_length - 1
@@ -37,10 +37,12 @@ def test_random_controller_scores_match_a_direct_computation(evaluator):
     assert report == again  # seeded: reproducible
     assert report != evaluator.evaluate(RandomController("DD", seed=4))
     assert report.success_rate == np.mean([e.success for e in report.episodes])
-    assert report.paper_reward == pytest.approx(np.mean([e.paper_reward for e in report.episodes]))
+    assert report.normalized_reward == pytest.approx(
+        np.mean([e.normalized_reward for e in report.episodes])
+    )
     # 20x20 mazes and 4 l steps: random walks mostly fail, with negative R̄.
     assert report.success_rate < 0.2
-    assert report.paper_reward < 0
+    assert report.normalized_reward < 0
     # Input recognition is the inputs test of the same (reset) controller.
     direct = evaluate_inputs(RandomController("DD", seed=3), inputs_for_maze(
         "M0_20x20_C1_l.25_L.25_t.5_T.5", "DD"
@@ -75,7 +77,7 @@ def test_summary_is_json_ready_with_the_run_folder_keys(evaluator, tmp_path):
     report = evaluator.evaluate(RandomController("DD", seed=0))
     summary = json.loads(json.dumps(report.summary()))
     assert {"success_rate", "normalized_reward", "input_recognition"} <= set(summary)
-    assert summary["normalized_reward"] == pytest.approx(report.paper_reward)
+    assert summary["normalized_reward"] == pytest.approx(report.normalized_reward)
     report.write_csv(tmp_path / "episodes.csv")
     lines = (tmp_path / "episodes.csv").read_text().splitlines()
     assert len(lines) == 73

@@ -46,7 +46,7 @@ def test_four_rotations_equal_the_rotations_given_one_by_one():
     rotated = evaluate(policy, "DD", MAZES, rotations=4, inputs=False)
     by_hand = evaluate(policy, "DD", rotations(MAZES), inputs=False)
     assert [e.steps for e in rotated.episodes] == [e.steps for e in by_hand.episodes]
-    assert rotated.paper_reward == by_hand.paper_reward
+    assert rotated.normalized_reward == by_hand.normalized_reward
     assert (rotated.rotations, by_hand.rotations) == (4, 1)
 
 

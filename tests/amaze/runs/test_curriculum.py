@@ -19,12 +19,8 @@ from amaze.curriculum.regimes import (
     curriculum_over,
 )
 from amaze.errors import AmazeError
-from amaze.runs.curriculum import (
-    DECISIONS_FILE,
-    BranchProgress,
-    DecisionLog,
-    decision_sequence,
-)
+from amaze.runs.branches import BranchProgress
+from amaze.runs.decisions import DECISIONS_FILE, DecisionLog, decision_sequence
 from tests.amaze.runs.toy_curriculum import ToyConfig, ToyLearner, ToyRun
 from tests.run_folders import snapshot
 
@@ -72,7 +68,7 @@ def test_a_run_records_every_decision_in_the_loops_order(finished: Path) -> None
     assert all(m.endswith("_8x8_C1") for d in generated for m in d["mazes"])
     select = records[3]
     assert [c["branch"] for c in select["candidates"]] == [0, 1]
-    assert {"success_rate", "mean_reward", "overall_success_rate", "env_steps"} <= set(
+    assert {"success_rate", "normalized_reward", "overall_success_rate", "env_steps"} <= set(
         select["candidates"][0]
     )
 

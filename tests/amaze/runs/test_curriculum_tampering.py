@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from amaze.errors import AmazeError
-from amaze.runs.curriculum import DECISIONS_FILE
+from amaze.runs.decisions import DECISIONS_FILE
 from tests.amaze.runs.test_curriculum import CONFIG, Interrupted
 from tests.amaze.runs.toy_curriculum import ToyLearner, ToyRun
 from tests.run_folders import snapshot

@@ -15,8 +15,9 @@ from pathlib import Path
 from amaze.curriculum.learner import TrainingOutcome
 from amaze.evaluation.controllers import RandomController
 from amaze.runs.config import option
-from amaze.runs.curriculum import CurriculumConfig, CurriculumRun
+from amaze.runs.curriculum import CurriculumRun
 from amaze.runs.folder import write_json
+from amaze.runs.regime import RegimeConfig
 
 
 class ToyError(ValueError):
@@ -24,7 +25,7 @@ class ToyError(ValueError):
 
 
 @dataclass
-class ToyConfig(CurriculumConfig):
+class ToyConfig(RegimeConfig):
     budget_steps: int = option(6000, "environment steps")
 
 

@@ -1,0 +1,310 @@
+"""The regime fields of a trainer's config: what every regime of every trainer shares.
+
+:class:`RegimeConfig` is the base of both trainers' configs
+(``evolution.config.EvolveConfig``, ``rl_baselines.config.TrainConfig``): the
+``regime`` and the fields of each regime (a curriculum's curator, stages,
+branches, epochs, rehearsal and final training; a co-evolution's options; the
+direct regime's mazes, evaluation mazes and agent rule; the target that
+curricula and co-evolution lead to). Each field declares the regimes it acts
+in (``option(regimes=...)``): set in another, the config is refused.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from amaze.curriculum.coevolution import CoevolutionError, MazePopulationConfig
+from amaze.curriculum.curators import (
+    CuratorContext,
+    curator_names,
+)
+from amaze.curriculum.interpolation import MAX_STAGES
+from amaze.curriculum.regimes import (
+    CURRICULUM_REGIMES,
+    MAX_OPEN_STAGES,
+    OPEN_EPOCHS,
+    OPEN_STAGES,
+    REGIMES,
+)
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE
+from amaze.maze.spec import MazeSpec
+from amaze.runs.config import RunConfig, option
+from amaze.validation import check_integer
+
+__all__ = ["MAX_BRANCHES", "MAX_REHEARSAL", "RegimeConfig"]
+
+#: Most branches per stage.
+MAX_BRANCHES = 64
+#: The default numbers of stages and branches (the paper's S and K; EDEnS: open-ended).
+DEFAULT_STAGES = {"edhucat": 10, "interpolation": 10, "edens": OPEN_STAGES}
+DEFAULT_BRANCHES = {"edhucat": 3, "interpolation": 1, "edens": 3}
+DEFAULT_CURATOR = {"edhucat": "careful", "interpolation": "interpolation", "edens": "edens"}
+#: The default rehearsal: earlier lineage mazes a branch also trains on (the paper: none).
+DEFAULT_REHEARSAL = {"edhucat": 0, "interpolation": 0, "edens": 7}
+#: Most rehearsed mazes.
+MAX_REHEARSAL = 64
+
+
+@dataclass
+class RegimeConfig(RunConfig):
+    """The regime fields of a trainer's config (``regime``, ``curator``, ``stages``...).
+
+    Each field acts in some regimes (its ``regimes``, :func:`~amaze.runs.config.option`):
+    set in another one, it is refused. In the direct regime ``curator``,
+    ``stages`` and ``branches`` stay unset; in a curriculum regime
+    :meth:`validate` fills them with the regime's defaults, so ``config.json``
+    records what ran; in the direct regime it fills ``agent_rule`` and
+    ``eval_mazes`` with the trainer's defaults.
+    """
+
+    #: The regimes this trainer runs: the direct and curriculum ones; a trainer
+    #: with a loop of its own for another regime (``coevolution``) adds it.
+    supported_regimes: ClassVar[tuple[str, ...]] = ("direct", *CURRICULUM_REGIMES)
+    #: The trainer's default ``epochs`` of an open-ended curriculum.
+    default_epochs: ClassVar[int] = OPEN_EPOCHS
+    #: The rules that may choose a direct run's agent, the trainer's default first.
+    agent_rules: ClassVar[tuple[str, ...]] = ("final", "best-eval")
+    #: The evaluation mazes of a direct run when the config gives none.
+    default_eval_mazes: ClassVar[tuple[str, ...]] = ()
+
+    regime: str = option("direct", "training regime", choices=REGIMES)
+    curator: str | None = option(
+        None,
+        "who selects agents and generates mazes in the edhucat regime: careful, moderate,"
+        " risky, random, edens, human, interpolation or a plug-in's name (default: careful)",
+        metavar="NAME",
+        regimes=CURRICULUM_REGIMES,
+    )
+    stages: int | None = option(
+        None,
+        "curriculum stages S, the trivial first one included; 0: open-ended, stages until"
+        " the budget is spent (default: 10; 0 for edens)",
+        metavar="S",
+        regimes=CURRICULUM_REGIMES,
+    )
+    branches: int | None = option(
+        None,
+        "branches K per stage (default: 3 for edhucat and edens, 1 for interpolation)",
+        metavar="K",
+        regimes=CURRICULUM_REGIMES,
+    )
+    epochs: int | None = option(
+        None,
+        "an open-ended curriculum's epochs: each branch may spend budget / (K * epochs)"
+        " (default: 100 for evolution, 10 for RL)",
+        metavar="E",
+        regimes=CURRICULUM_REGIMES,
+    )
+    rehearsal: int | None = option(
+        None,
+        "earlier mazes of the lineage each branch also trains on, besides its own"
+        " (default: 7 for edens, 0 otherwise)",
+        metavar="R",
+        regimes=CURRICULUM_REGIMES,
+    )
+    target: str = option(
+        PAPER_TRAINING_MAZE,
+        "the maze a curriculum or a co-evolution leads to (interpolation's end, the"
+        " curators' target, the family of the co-evolved mazes)",
+        metavar="MAZE",
+        regimes=(*CURRICULUM_REGIMES, "coevolution"),
+    )
+    mazes: list[str] = option(
+        default_factory=lambda: [PAPER_TRAINING_MAZE],
+        help="training mazes of the direct regime, each played in its 4 rotations"
+        " (default: the paper's)",
+        regimes=("direct",),
+    )
+    eval_mazes: list[str] | None = option(
+        None,
+        "mazes a direct run evaluates its agent on as it trains, 4 rotations each"
+        " (default: the paper's evaluation maze for RL, none for evolution)",
+        regimes=("direct",),
+    )
+    agent_rule: str | None = option(
+        None,
+        "which agent a direct run hands over: final (the agent when training stops),"
+        " best-eval (the best on eval_mazes among the evaluations), best-fitness"
+        " (evolution: the best training fitness) (default: final for RL, best-fitness"
+        " for evolution; curricula hand over the curator's final choice, co-evolution"
+        " the best on its validation mazes)",
+        metavar="RULE",
+        regimes=("direct",),
+    )
+    final_training: bool = option(
+        True,
+        "spend what the stages leave of the budget on the final agent, trained on its"
+        " lineage's mazes (off: the paper's protocol, the final choice as it is)",
+        regimes=CURRICULUM_REGIMES,
+    )
+    curator_options: dict[str, Any] = option(
+        default_factory=dict,
+        help="the curator's own options",
+        command_line=False,
+        regimes=CURRICULUM_REGIMES,
+    )
+    replay: str | None = option(
+        None,
+        "the run whose recorded decisions this run replays",
+        command_line=False,
+        regimes=CURRICULUM_REGIMES,
+    )
+    coevolution: dict[str, Any] = option(
+        default_factory=dict,
+        help="the maze population's options in the coevolution regime (MazePopulationConfig)",
+        command_line=False,
+        regimes=("coevolution",),
+    )
+
+    @property
+    def is_curriculum(self) -> bool:
+        """True for the regimes the curriculum loop plays."""
+        return self.regime in CURRICULUM_REGIMES
+
+    @property
+    def open_ended(self) -> bool:
+        """True for a curriculum whose stages go on until the budget is spent."""
+        return self.is_curriculum and self.stages == OPEN_STAGES
+
+    def validate(self) -> RegimeConfig:
+        """Check the regime fields (and the shared ones); fill a curriculum's defaults."""
+        super().validate()
+        if self.regime not in self.supported_regimes:
+            known = "is not run by this trainer" if self.regime in REGIMES else "is unknown"
+            raise self.error(
+                f"regime {self.regime!r} {known} (choose from {', '.join(self.supported_regimes)})"
+            )
+        self.refuse_options_without_effect(self.regime)  # before anything is normalised
+        if self.regime != "direct":
+            self.target = self._maze("target", self.target)
+        self.mazes = self._maze_list("mazes", self.mazes)
+        if self.eval_mazes is not None:
+            self.eval_mazes = self._maze_list("eval_mazes", self.eval_mazes, empty=True)
+        self._check_coevolution()
+        if self.regime == "direct":
+            self._direct_defaults()
+        if not self.is_curriculum:
+            return self
+        if self.curator is None:
+            self.curator = DEFAULT_CURATOR[self.regime]
+        own = DEFAULT_CURATOR[self.regime]
+        if self.regime != "edhucat" and self.curator != own:
+            raise self.error(
+                f"curator {self.curator!r}: the {self.regime} regime's curator is {own}"
+                " (use --regime edhucat for another curator)"
+            )
+        if not isinstance(self.curator, str) or self.curator not in curator_names():
+            raise self.error(
+                f"unknown curator {self.curator!r} (choose from {', '.join(curator_names())})"
+            )
+        if self.stages is None:
+            self.stages = DEFAULT_STAGES[self.regime]
+        if self.branches is None:
+            self.branches = DEFAULT_BRANCHES[self.regime]
+        if self.rehearsal is None:
+            self.rehearsal = DEFAULT_REHEARSAL[self.regime]
+        self.stages = check_integer(
+            "stages", self.stages, minimum=0, maximum=MAX_STAGES, error=self.error
+        )
+        if self.regime == "interpolation" and self.stages < 2:
+            raise self.error(
+                f"stages {self.stages}: an interpolation has a fixed number of stages, 2 or"
+                " more (its first maze and its target)"
+            )
+        if self.stages != OPEN_STAGES and self.epochs is not None:
+            raise self.error(
+                f"epochs {self.epochs!r} is for open-ended curricula (stages 0), not"
+                f" {self.stages} stages"
+            )
+        if self.stages == OPEN_STAGES:
+            if self.epochs is None:
+                self.epochs = self.default_epochs
+            self.epochs = check_integer(
+                "epochs", self.epochs, minimum=1, maximum=MAX_OPEN_STAGES, error=self.error
+            )
+        self.rehearsal = check_integer(
+            "rehearsal", self.rehearsal, minimum=0, maximum=MAX_REHEARSAL, error=self.error
+        )
+        self.branches = check_integer(
+            "branches", self.branches, minimum=1, maximum=MAX_BRANCHES, error=self.error
+        )
+        if not isinstance(self.curator_options, dict):
+            raise self.error(f"curator_options {self.curator_options!r} is not a JSON object")
+        if self.replay is not None and not isinstance(self.replay, str):
+            raise self.error(f"replay {self.replay!r} is not a run folder")
+        return self
+
+    def _maze(self, name: str, value: Any) -> str:
+        """``value``'s canonical maze string; the config's error naming ``name`` otherwise."""
+        try:
+            return MazeSpec.from_string(str(value)).to_string()
+        except ValueError as problem:
+            raise self.error(f"{name} {value!r}: {problem}") from None
+
+    def _maze_list(self, name: str, value: Any, empty: bool = False) -> list[str]:
+        """A list of maze strings, each checked (a comma-separated string is split).
+
+        The strings are kept as given (``config.json`` records what the user
+        wrote; the trainers parse them).
+        """
+        if isinstance(value, str):
+            value = [m.strip() for m in value.split(",") if m.strip()]
+        if not isinstance(value, list) or (not value and not empty):
+            raise self.error(f"{name} {value!r} is not a non-empty list of maze strings")
+        for maze in value:
+            self._maze(name, maze)
+        return list(value)
+
+    def _direct_defaults(self) -> None:
+        """A direct run's agent rule and evaluation mazes: the config's or the trainer's."""
+        if self.agent_rule is None:
+            self.agent_rule = self.agent_rules[0]
+        if self.agent_rule not in self.agent_rules:
+            raise self.error(
+                f"agent_rule {self.agent_rule!r} is not one of {', '.join(self.agent_rules)}"
+            )
+        if self.eval_mazes is None:
+            self.eval_mazes = list(self.default_eval_mazes)
+        if self.agent_rule == "best-eval" and not self.eval_mazes:
+            raise self.error("agent_rule 'best-eval' needs eval_mazes (--eval-mazes A,B,...)")
+
+    @classmethod
+    def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+        """``--budget-seconds`` without ``--budget-steps`` is a wall-clock budget alone.
+
+        (A trainer's default ``budget_steps`` would otherwise limit it too.) A
+        ``--config`` file that sets ``budget_steps`` keeps it: both budgets apply.
+        """
+        if getattr(args, "budget_seconds", None) is not None and args.budget_steps is None:
+            data.setdefault("budget_steps", None)
+        return data
+
+    def _check_coevolution(self) -> None:
+        """``coevolution`` is a valid maze population config, and only in that regime."""
+        if not isinstance(self.coevolution, dict):
+            raise self.error(f"coevolution {self.coevolution!r} is not a JSON object")
+        if self.regime != "coevolution":
+            if self.coevolution:
+                raise self.error(
+                    f"coevolution options {self.coevolution!r} are for the coevolution regime,"
+                    f" not {self.regime}"
+                )
+            return
+        try:
+            MazePopulationConfig.from_dict(self.coevolution)
+        except CoevolutionError as problem:
+            raise self.error(str(problem)) from None
+
+    def curator_context(self) -> CuratorContext:
+        """What the curator is built from."""
+        assert self.stages is not None and self.branches is not None
+        return CuratorContext(
+            target=self.target,
+            seed=self.seed,
+            stages=self.stages,
+            branches=self.branches,
+            robot=self.robot,
+            options=dict(self.curator_options),
+        )

@@ -51,6 +51,12 @@ def check_integer(
     """``value`` as an ``int`` if it is an integer (numpy's too) within the bounds.
 
     Raises ``error("<name> <value> is not a positive integer")`` (or the like) otherwise.
+
+    >>> check_integer("seed", 7, minimum=0)
+    7
+    >>> check_integer("seed", -1, minimum=0)
+    Traceback (most recent call last):
+    ValueError: seed -1 is not a non-negative integer
     """
     number = None if isinstance(value, bool) or not isinstance(value, Integral) else int(value)
     if (
@@ -112,6 +118,12 @@ def parse_json(
     Bytes must be UTF-8 (a leading BOM is refused, as JSON forbids it);
     nesting deeper than ``max_depth`` (``[`` x 100000) is refused like any
     other bad document.
+
+    >>> parse_json('{"seed": [1, 2]}', "config")
+    {'seed': [1, 2]}
+    >>> parse_json("[[[1]]]", "config", max_depth=2)
+    Traceback (most recent call last):
+    ValueError: config nests arrays or objects more than 2 deep
     """
     if isinstance(text, bytes | bytearray):
         try:

@@ -1,15 +1,17 @@
-"""The generation loop that every evolution regime without stages shares.
+"""The generation loop of the direct regime, and the agent every evolution run hands over.
 
 :class:`GenerationLoop` is a :class:`~amaze.runs.lifecycle.Run` whose
 training is ``generation()`` after ``generation()`` until a budget is spent
 (env steps, wall-clock seconds, generations, or the algorithm stopping),
 with a progress bar, a ``progress.csv`` row per generation and a checkpoint
 every ``checkpoint_seconds`` of run time and after the last generation. The
-direct regime (:class:`evolution.run.EvolutionRun`) and the coevolution
-regime (:class:`evolution.coevolution.EvolutionCoevolutionRun`) supply the
-generation and the checkpoint; each generation updates the state's
-:class:`ChosenAgent`, the agent the run hands over as its rule picks it
-(written at the end as ``agent.npz``).
+direct regime (:class:`evolution.run.EvolutionRun`) supplies the generation
+and the checkpoint; each generation updates the state's :class:`ChosenAgent`,
+the agent the run hands over as its rule picks it (written at the end as
+``agent.npz``). The coevolution regime
+(:class:`evolution.coevolution.EvolutionCoevolutionRun`) plays the shared
+co-evolution loop instead, and hands its champion over the same way
+(:func:`chosen_policy`, :func:`save_chosen`, :func:`search_stop_reason`).
 """
 
 from __future__ import annotations
@@ -23,12 +25,13 @@ from typing import Any
 
 import numpy as np
 
+from amaze.runs.anytime import Spent
 from amaze.runs.lifecycle import Run
 from amaze.runs.progress import Progress
 from evolution.agent_file import policy_from_agent_arrays, save_agent
 from evolution.config import EvolveConfig
 
-__all__ = ["ChosenAgent", "GenerationLoop"]
+__all__ = ["ChosenAgent", "GenerationLoop", "chosen_policy", "save_chosen", "search_stop_reason"]
 
 
 @dataclass
@@ -119,6 +122,7 @@ class GenerationLoop(Run):
                     self.save_checkpoint()
                     last_checkpoint = self.state.seconds
                 self.state.seconds += time.perf_counter() - logging_started
+                self.evaluate_anytime()  # outside the seconds the budget counts
                 rate = self.state.steps / max(self.state.eval_seconds, 1e-9)
                 shown.update(
                     self._done(),
@@ -128,26 +132,15 @@ class GenerationLoop(Run):
                     steps_s=f"{rate / 1e6:.2f}M",
                 )
 
+    def spent(self) -> Spent:
+        s = self.state
+        return Spent(s.generation, s.steps, s.seconds, generations=s.generation)
+
     def final_agent(self) -> Any:
-        agent = self.state.agent
-        if agent is None:
-            raise self.config.error("the run evaluated no generation")
-        where = f"the {self.config.algo} agent"
-        metadata = {"architecture": agent.architecture, "robot": self.config.robot}
-        return policy_from_agent_arrays(agent.arrays, metadata, where=where)
+        return chosen_policy(self.state.agent, self.config)
 
     def save_agent(self, agent: Any, path: Path) -> None:
-        c, chosen = self.config, self.state.agent
-        metadata = {
-            "architecture": chosen.architecture,
-            "robot": c.robot,
-            "algorithm": c.algo,
-            "fitness_measure": c.fitness,
-            "generation": chosen.generation,
-            "seed": c.seed,
-            **chosen.extra,
-        }
-        save_agent(path, chosen.arrays, metadata)
+        save_chosen(self.state.agent, self.config, path)
 
     def agent_figures(self) -> dict[str, Any]:
         chosen = self.state.agent
@@ -160,19 +153,15 @@ class GenerationLoop(Run):
 
     def stop_reason(self) -> str:
         c, s = self.config, self.state
-        if s.algorithm.stopped:
-            reasons = ", ".join(sorted(getattr(s.algorithm, "stop_reasons", {}))) or "its criteria"
-            return f"the {c.algo} search stopped, with no restart left ({reasons})"
-        if c.max_generations is not None and s.generation >= c.max_generations:
-            return f"max_generations {c.max_generations} reached"
-        if c.budget_steps is not None:
+        reason = search_stop_reason(s.algorithm, c, s.generation)
+        if not reason and c.budget_steps is not None:
             least, what = self.generation_steps()
             if c.budget_steps - s.steps < least:
-                return (
+                reason = (
                     f"the {c.budget_steps - s.steps:,} steps left cannot pay another generation"
                     f" ({what} spend at least {least:,})"
                 )
-        return ""
+        return reason
 
     def budget_left(self) -> bool:
         """Whether another generation starts: every budget has room, the algorithm goes on."""
@@ -192,3 +181,35 @@ class GenerationLoop(Run):
         if self.config.budget_seconds is not None:
             return min(self.state.seconds, self.config.budget_seconds)
         return self.state.generation
+
+
+def chosen_policy(chosen: ChosenAgent | None, config: EvolveConfig) -> Any:
+    """The policy of the agent a run hands over; the config's error while there is none."""
+    if chosen is None:
+        raise config.error("the run evaluated no generation")
+    metadata = {"architecture": chosen.architecture, "robot": config.robot}
+    return policy_from_agent_arrays(chosen.arrays, metadata, where=f"the {config.algo} agent")
+
+
+def save_chosen(chosen: ChosenAgent, config: EvolveConfig, path: Path) -> None:
+    """Write the agent a run hands over to ``path``, an agent file with the run's metadata."""
+    metadata = {
+        "architecture": chosen.architecture,
+        "robot": config.robot,
+        "algorithm": config.algo,
+        "fitness_measure": config.fitness,
+        "generation": chosen.generation,
+        "seed": config.seed,
+        **chosen.extra,
+    }
+    save_agent(path, chosen.arrays, metadata)
+
+
+def search_stop_reason(algorithm: Any, config: EvolveConfig, generation: int) -> str:
+    """Why the search ends besides a budget: the algorithm stopped, or ``max_generations``."""
+    if algorithm.stopped:
+        reasons = ", ".join(sorted(getattr(algorithm, "stop_reasons", {}))) or "its criteria"
+        return f"the {config.algo} search stopped, with no restart left ({reasons})"
+    if config.max_generations is not None and generation >= config.max_generations:
+        return f"max_generations {config.max_generations} reached"
+    return ""

@@ -35,6 +35,7 @@ __all__ = ["entry_point", "main"]
 
 def parser() -> CommandParser:
     p = CommandParser(
+        version=True,
         prog="amaze-experiment",
         description="Run a study (a grid of trainers x algorithms x seeds), then report it.",
     )

@@ -24,7 +24,7 @@ the demo prints the same figures run after run, busy machine or not (a
 seconds budget would stop a run on a busy machine earlier, at other
 figures). Each run's seconds are printed beside its steps (on an idle
 2-core machine, about 20 s and 15 s). The project's headline claims
-(README, "Co-evolved mazes") use equal wall-clock seconds instead; at 20 s
+(``docs/regimes/coevolution.md``) use equal wall-clock seconds instead; at 20 s
 each, this seed's two runs come out the same way.
 
 **Why the target maze for the direct run.** It is the direct regime's
@@ -263,8 +263,8 @@ def run_headline(out: Path, steps: int = BUDGET_STEPS) -> dict[str, dict[str, An
         save_rotations_strip(result.agent, out / "agents" / f"evaluation_maze_{regime}.png")
     print(f"\n{format_comparison(table)}")
     print(
-        f"one seed, {steps:,} steps: for 5 seeds x 300 s and the statistics, see the README's"
-        ' "Co-evolved mazes"'
+        f"one seed, {steps:,} steps: for 5 seeds x 300 s and the statistics, see"
+        " docs/regimes/coevolution.md"
     )
     (out / "headline.json").write_text(json.dumps(table, indent=1) + "\n")
     return table
@@ -369,7 +369,7 @@ def further_commands(champion: Path) -> list[tuple[str, str]]:
         (
             f"amaze-evolve --regime coevolution --robot {ROBOT} --budget-seconds 300"
             f" --seed {SEED} --out runs/co",
-            "the README's headline run: 5 minutes, about 99% of the suite",
+            "the headline run of the README's results: 5 minutes, about 99% of the suite",
         ),
         (
             "amaze-experiment run smoke --out studies/smoke --workers 2",

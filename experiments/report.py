@@ -1,38 +1,43 @@
-"""A study's report: every number recomputed from its runs' ``summary.json`` files.
+"""A study's report: every number recomputed from its runs' summaries and anytime evaluations.
 
 ``amaze-experiment report DIR`` (:func:`write_report`) writes, in ``DIR``:
 
 * ``runs.csv``: one row per finished run (study, treatment, trainer,
-  algorithm, condition, robot, seed, env steps, seconds, wall-clock and
-  core-seconds, suite success, R̄, input recognition and its rate per input
-  class, the run's folder);
-* ``tests.csv``: every pairwise comparison (:mod:`experiments.stats`);
-* ``figures/``: distributions of R̄ and success per treatment, input
-  recognition per class, learning curves (against env steps and wall-clock
-  seconds) and the best agent's trajectories;
-* ``report.md``: the paper's Table 3 for the study (maximum and median of R̄,
-  success and input recognition per trainer x algorithm, best in bold,
-  second in italics) with the paper's own numbers beside it
-  (:mod:`experiments.paper`), the significant pairwise differences, the
-  figures and the compute each treatment took.
+  algorithm, condition, robot, seed, env steps, seconds, the share of its
+  budget spent, wall-clock and core-seconds, suite success, R̄, input
+  recognition and its rate per input class, the final agent's success and
+  R̄ on the evaluation set and the set's digest, the run's folder);
+* ``tests.csv``: every pairwise test (:mod:`experiments.stats`), with its n
+  and why its stars are withheld where they are;
+* ``figures/``: per comparison the study declares
+  (:mod:`experiments.comparisons`), learning curves and a performance
+  profile from the anytime evaluations (:mod:`experiments.curves`); the
+  standard-suite distributions, input recognition and the best agent's
+  trajectories (:mod:`experiments.figures`); each as PNG, PDF and SVG, every
+  treatment in one colour (``colours.json``);
+* ``report.md``, in this order: whether budgets were held equal (a treatment
+  with a run outside 90-110% of its budget is flagged here and marked in
+  every table), the final agents on the evaluation set (IQM and 95%
+  bootstrap interval), each comparison (curves, profile, probability of
+  improvement of its pairs), the paper's Table 3 from the standard suite
+  with the paper's own numbers beside it (:mod:`experiments.paper`), the
+  paper's pairwise tests (stars only where a test can reach them), the
+  standard-suite figures, the runs' parts left out and the compute.
 
-Pairs are compared when they differ in one factor (trainer or algorithm)
-under the same condition: the comparisons a reader makes, and a family small
-enough for the correction to leave some power.
+The tables are :mod:`experiments.report_tables`'; every one shows its n.
 
-A run's file that cannot be read (a damaged ``summary.json``, a
-``progress.csv`` that is not a progress log, a trajectory picture that is
-not a picture) does not stop the report of the others: what it would have
-given is left out, and the report says so, run by run, with the reason
-(:class:`LeftOut`: a section of ``report.md``, and a warning each for the
-command). A file of the study itself (``study.toml``, ``state.json``) that
-cannot be read is an error: without it there is no report to write.
+A run's file that cannot be read (a damaged ``summary.json`` or
+``evaluations.csv``, a trajectory picture that is not a picture) does not
+stop the report of the others: what it would have given is left out, and
+the report says so, run by run, with the reason (:class:`LeftOut`: a
+section of ``report.md``, and a warning each for the command); so is a run
+evaluated on another evaluation set than the others of its comparison. A
+file of the study itself (``study.toml``, ``state.json``) that cannot be
+read is an error: without it there is no report to write.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -40,293 +45,60 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from amaze.errors import one_line
-from amaze.runs.config import read_json_object
 from amaze.runs.folder import write_bytes
-from amaze.runs.lifecycle import SUMMARY_FILE
-from experiments.paper import PAPER_CITATION, PAPER_TABLE3, paper_trainer
-from experiments.runner import StudyFolder
-from experiments.stats import Comparison, compare_pairs
-from experiments.study import PlannedRun, Study, StudyError
-
-__all__ = ["METRICS", "LeftOut", "collect_rows", "read_summary", "table3", "write_report"]
-
-#: The metrics of Table 3, in the paper's order, with their labels.
-METRICS = {
-    "normalized_reward": "Normalized reward R̄",
-    "success_rate": "Success rate",
-    "input_recognition": "Input recognition",
-}
-#: The input classes of the input-recognition test.
-INPUT_CLASSES = ("empty", "lure", "clue", "trap")
-RUN_COLUMNS = (
-    "study",
-    "treatment",
-    "trainer",
-    "algorithm",
-    "budget",
-    "condition",
-    "robot",
-    "seed",
-    "env_steps",
-    "seconds",
-    "budget_spent",
-    "stopped_early",
-    "wall_seconds",
-    "threads",
-    "core_seconds",
-    "success_rate",
-    "normalized_reward",
-    "input_recognition",
-    *(f"input_{kind}" for kind in INPUT_CLASSES),
-    "folder",
+from experiments.comparisons import StudyComparison
+from experiments.curves import write_comparison_figures
+from experiments.evaluations import ComparisonData, comparison_data
+from experiments.figures import save_figures
+from experiments.paper import PAPER_CITATION
+from experiments.plotting import FORMATS, Palette
+from experiments.report_runs import (
+    RUN_COLUMNS,
+    LeftOut,
+    budget_share,
+    collect_rows,
+    read_runs,
+    read_summary,
+    to_csv,
 )
+from experiments.report_tables import (
+    BUDGET_TOLERANCE,
+    FLAG,
+    METRICS,
+    BudgetSpent,
+    budget_table,
+    budgets_spent,
+    compute_table,
+    final_table,
+    improvement_table,
+    paper_comparison,
+    significance,
+    table3,
+)
+from experiments.runner import StudyFolder
+from experiments.stats import MIN_SEEDS, Comparison, compare_pairs
+from experiments.study import PlannedRun, Study
 
+__all__ = [
+    "METRICS",
+    "RUN_COLUMNS",
+    "LeftOut",
+    "budget_share",
+    "collect_rows",
+    "read_runs",
+    "read_summary",
+    "table3",
+    "write_report",
+]
 
-@dataclass(frozen=True)
-class LeftOut:
-    """Part of a run the report could not read, so left out: which run, what, and why."""
-
-    run: str
-    #: What is missing from the report: ``"its row"``, ``"its learning curve"``...
-    what: str
-    reason: str
-
-    def __str__(self) -> str:
-        return f"run {self.run}: {self.what} left out of the report: {self.reason}"
-
-
-def _number(value: Any) -> float:
-    return (
-        float(value) if isinstance(value, int | float) and not isinstance(value, bool) else math.nan
-    )
-
-
-def read_summary(path: Path) -> dict[str, Any]:
-    """The summary in ``path``: a JSON object with its ``env_steps``; StudyError naming it else.
-
-    The other figures are read as numbers where they are numbers (a missing
-    or odd one is an empty cell, as for a trainer that does not report it).
-    """
-    summary = read_json_object(path, StudyError, "summary")
-    steps = summary.get("env_steps")
-    if isinstance(steps, bool) or not isinstance(steps, int | float) or not 0 <= steps < math.inf:
-        raise StudyError(f"summary {str(path)!r}: env_steps {steps!r} is not a number of steps")
-    return summary
-
-
-#: Treatments whose median budget spent differs from the rest of their condition by more
-#: than this (a share of the budget) are flagged: their comparison is not at equal budget.
-BUDGET_TOLERANCE = 0.10
-
-
-def budget_spent(run: PlannedRun, summary: dict[str, Any]) -> float:
-    """The share of its budget a run spent: the most of any budget it was given.
-
-    ``summary.json``'s ``budget_spent`` where it has one; else from its env
-    steps and seconds against the run's budgets (summaries written before).
-    """
-    recorded = summary.get("budget_spent")
-    if isinstance(recorded, dict):
-        shares = [_number(v) for v in recorded.values()]
-        shares = [share for share in shares if not math.isnan(share)]
-        if shares:
-            return max(shares)
-    shares = []
-    for budget, used in ((run.budget_steps, "env_steps"), (run.budget_seconds, "seconds")):
-        if budget:
-            shares.append(_number(summary.get(used)) / float(budget))
-    return max(shares) if shares else math.nan
-
-
-def collect_rows(
-    folder: StudyFolder, study: Study, left_out: list[LeftOut] | None = None
-) -> list[dict[str, Any]]:
-    """One row per finished run of ``study`` in ``folder`` (see :data:`RUN_COLUMNS`).
-
-    A run whose summary cannot be read has no row; it is added to ``left_out``.
-    """
-    state = folder.state()
-    rows = []
-    for run in study.runs:
-        path = folder.run_folder(run) / SUMMARY_FILE
-        if not path.is_file():
-            continue
-        try:
-            summary = read_summary(path)
-        except StudyError as problem:
-            if left_out is not None:
-                left_out.append(LeftOut(run.id, "its row", one_line(problem)))
-            continue
-        rates = summary.get("input_rates")
-        rates = rates if isinstance(rates, dict) else {}
-        wall = _number(state["wall_seconds"].get(run.id))
-        threads = state["threads"].get(run.id)
-        rows.append(
-            {
-                "study": study.name,
-                "treatment": run.treatment,
-                "trainer": run.trainer,
-                "algorithm": run.algorithm,
-                "budget": run.budget,
-                "condition": run.condition,
-                "robot": run.config.get("robot"),
-                "seed": run.seed,
-                "env_steps": int(summary["env_steps"]),
-                "seconds": _number(summary.get("seconds")),
-                "budget_spent": budget_spent(run, summary),
-                "stopped_early": summary.get("stopped_early") or "",
-                "wall_seconds": wall,
-                "threads": threads if isinstance(threads, int) else "",
-                "core_seconds": wall * threads if isinstance(threads, int) else math.nan,
-                "success_rate": _number(summary.get("success_rate")),
-                "normalized_reward": _number(summary.get("normalized_reward")),
-                "input_recognition": _number(summary.get("input_recognition")),
-                **{f"input_{kind}": _number(rates.get(kind)) for kind in INPUT_CLASSES},
-                "folder": str(folder.run_folder(run).relative_to(folder.out)),
-            }
-        )
-    return rows
-
-
-def _csv(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> bytes:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow(
-            {k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
-        )
-    return buffer.getvalue().encode("utf-8")
-
-
-def _cells(study: Study, condition: str) -> list[tuple[str, str]]:
-    """The (trainer, algorithm) cells of one condition, in the study's order."""
-    return list(
-        dict.fromkeys((r.trainer, r.algorithm) for r in study.runs if r.condition == condition)
-    )
-
-
-def _values(
-    rows: Sequence[dict[str, Any]], trainer: str, algorithm: str, condition: str, metric: str
-) -> list[float]:
-    return [
-        row[metric]
-        for row in rows
-        if (row["trainer"], row["algorithm"], row["condition"]) == (trainer, algorithm, condition)
-        and not math.isnan(row[metric])
-    ]
-
-
-def _statistic(values: Sequence[float], statistic: str) -> float:
-    if not values:
-        return math.nan
-    return float(np.max(values)) if statistic == "max" else float(np.median(values))
-
-
-def _ranked(row: Sequence[float]) -> list[str]:
-    """``bold``/``italic``/``""`` per value: the best and second-best distinct values of a row."""
-    distinct = sorted({v for v in row if not math.isnan(v)}, reverse=True)
-    marks = []
-    for value in row:
-        if distinct and value == distinct[0]:
-            marks.append("bold")
-        elif len(distinct) > 1 and value == distinct[1]:
-            marks.append("italic")
-        else:
-            marks.append("")
-    return marks
-
-
-def _fmt(value: float, mark: str = "") -> str:
-    if math.isnan(value):
-        return "–"
-    text = f"{value:.3g}" if abs(value) >= 0.001 else f"{value:.3f}"
-    return f"**{text}**" if mark == "bold" else f"*{text}*" if mark == "italic" else text
-
-
-#: Most trainer x algorithm cells shown as the paper's columns; more are shown as rows.
-WIDE_CELLS = 8
-SHORT_METRICS = {"normalized_reward": "R̄", "success_rate": "success", "input_recognition": "IR"}
-
-
-def table3(rows: Sequence[dict[str, Any]], study: Study, condition: str) -> tuple[str, dict]:
-    """The paper's Table 3 for one condition, as Markdown, and its numbers.
-
-    The maximum and median of each metric over the seeds of each trainer x
-    algorithm cell; the best value of a statistic is bold, the second italic
-    (higher is better for every metric). Up to :data:`WIDE_CELLS` cells are
-    columns, as in the paper; more are rows, which read better.
-    ``numbers[statistic][metric]`` lists the values in the cells' order.
-    """
-    cells = _cells(study, condition)
-    numbers: dict[str, dict[str, list[float]]] = {}
-    marks: dict[str, dict[str, list[str]]] = {}
-    for statistic in ("max", "median"):
-        numbers[statistic], marks[statistic] = {}, {}
-        for metric in METRICS:
-            values = [
-                _statistic(_values(rows, t, a, condition, metric), statistic) for t, a in cells
-            ]
-            numbers[statistic][metric] = values
-            marks[statistic][metric] = _ranked(values)
-    counts = [len(_values(rows, t, a, condition, "success_rate")) for t, a in cells]
-    titles = {"max": "Maximum", "median": "Median"}
-    if len(cells) <= WIDE_CELLS:
-        lines = [
-            "| | | " + " | ".join(f"{t}<br>{a.upper()}" for t, a in cells) + " |",
-            "|---|---|" + "---|" * len(cells),
-        ]
-        for statistic, title in titles.items():
-            for metric, label in METRICS.items():
-                shown = zip(numbers[statistic][metric], marks[statistic][metric], strict=True)
-                lines.append(
-                    f"| {title} | {label} | " + " | ".join(_fmt(v, m) for v, m in shown) + " |"
-                )
-        lines.append("| | runs | " + " | ".join(str(c) for c in counts) + " |")
-        return "\n".join(lines), numbers
-    columns = [(s, m) for s in titles for m in METRICS]
-    lines = [
-        "| trainer | algorithm | "
-        + " | ".join(f"{titles[s].lower()} {SHORT_METRICS[m]}" for s, m in columns)
-        + " | runs |",
-        "|---|---|" + "---|" * (len(columns) + 1),
-    ]
-    for index, (trainer, algorithm) in enumerate(cells):
-        values = [_fmt(numbers[s][m][index], marks[s][m][index]) for s, m in columns]
-        lines.append(
-            f"| {trainer} | {algorithm.upper()} | " + " | ".join(values) + f" | {counts[index]} |"
-        )
-    return "\n".join(lines), numbers
-
-
-def paper_comparison(rows: Sequence[dict[str, Any]], study: Study, condition: str) -> str | None:
-    """This study's Table 3 cells beside the paper's (where the paper has the cell)."""
-    cells = [
-        (t, a)
-        for t, a in _cells(study, condition)
-        if (paper_trainer(t), a) in PAPER_TABLE3["max"]["success_rate"]
-    ]
-    if not cells:
-        return None
-    header = "| | | " + " | ".join(f"{t}<br>{a.upper()}" for t, a in cells) + " |"
-    lines = [header, "|---|---|" + "---|" * len(cells)]
-    for statistic, title in (("max", "Maximum"), ("median", "Median")):
-        for metric, label in METRICS.items():
-            values = []
-            for trainer, algorithm in cells:
-                ours = _statistic(_values(rows, trainer, algorithm, condition, metric), statistic)
-                theirs = PAPER_TABLE3[statistic][metric][(paper_trainer(trainer), algorithm)]
-                values.append(f"{_fmt(ours)} / {theirs:g}")
-            lines.append(f"| {title} | {label} | " + " | ".join(values) + " |")
-    return "\n".join(lines)
+# -- the paper's pairwise tests -------------------------------------------------------------------
 
 
 def pairs_of(study: Study, condition: str) -> list[tuple[str, str]]:
     """The treatments of one condition that differ in exactly one factor (trainer or algorithm)."""
-    cells = _cells(study, condition)
+    cells = list(
+        dict.fromkeys((r.trainer, r.algorithm) for r in study.runs if r.condition == condition)
+    )
     pairs = []
     for i, (t1, a1) in enumerate(cells):
         for t2, a2 in cells[i + 1 :]:
@@ -337,14 +109,13 @@ def pairs_of(study: Study, condition: str) -> list[tuple[str, str]]:
 
 def comparisons(rows: Sequence[dict[str, Any]], study: Study) -> list[Comparison]:
     """The pairwise tests of every metric; each metric is one family for the correction."""
-    conditions = list(dict.fromkeys(r.condition for r in study.runs))
     found: list[Comparison] = []
     for metric in METRICS:
         groups = {
             treatment: [row[metric] for row in rows if row["treatment"] == treatment]
             for treatment in study.treatments
         }
-        pairs = [pair for condition in conditions for pair in pairs_of(study, condition)]
+        pairs = [pair for condition in study.conditions for pair in pairs_of(study, condition)]
         found += compare_pairs(metric, groups, pairs)
     return found
 
@@ -365,6 +136,7 @@ TEST_COLUMNS = (
     "u_p_corrected",
     "u_stars",
     "rank_biserial",
+    "stars_withheld",
 )
 
 
@@ -373,133 +145,186 @@ def _test_rows(found: Sequence[Comparison]) -> list[dict[str, Any]]:
     for comparison in found:
         row = asdict(comparison)
         row["t_stars"], row["u_stars"] = comparison.t_stars, comparison.u_stars
+        row["stars_withheld"] = comparison.withheld or ""
         rows.append({k: (math.nan if v is None else v) for k, v in row.items()})
     return rows
 
 
-def _significant(found: Sequence[Comparison]) -> str:
-    chosen = [c for c in found if c.t_stars not in ("ns", "n/a") or c.u_stars not in ("ns", "n/a")]
-    if not chosen:
-        return "No pair differs significantly (corrected p < 0.05) in either test."
-    lines = [
-        "| metric | first | second | means | t-test (BH) | Cohen's d | Mann-Whitney (BH)"
-        " | rank-biserial |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for c in chosen:
-        lines.append(
-            f"| {METRICS[c.metric]} | {c.first} | {c.second} |"
-            f" {c.mean_first:.3g} vs {c.mean_second:.3g} |"
-            f" {_p(c.t_p_corrected)} {c.t_stars} | {_signed(c.cohens_d)} |"
-            f" {_p(c.u_p_corrected)} {c.u_stars} | {_signed(c.rank_biserial)} |"
-        )
-    return "\n".join(lines)
+# -- the report's sections ------------------------------------------------------------------------
 
 
-def _signed(value: float) -> str:
-    return "n/a" if math.isnan(value) else f"{value:+.2f}"
+@dataclass
+class Findings:
+    """What the report's sections are written from."""
+
+    folder: StudyFolder
+    study: Study
+    rows: list[dict[str, Any]]
+    spent: dict[str, BudgetSpent]
+    #: Per comparison: its data and its figures (title, PNG path).
+    compared: list[tuple[ComparisonData, list[tuple[str, Path]]]]
+    #: Per condition: all its treatments' final agents on the evaluation set.
+    finals: dict[str, ComparisonData]
+    tests: list[Comparison]
+    figures: list[tuple[str, Path]]
+    left_out: list[LeftOut]
+
+    @property
+    def flagged(self) -> set[str]:
+        return {t for t, s in self.spent.items() if s.flagged}
+
+    def link(self, title: str, path: Path) -> list[str]:
+        """A figure in ``report.md``: the PNG, with its PDF and SVG named beside it."""
+        relative = path.relative_to(self.folder.out).as_posix()
+        others = ", ".join(f"[{s}]({relative.removesuffix('.png')}.{s})" for s in FORMATS[1:])
+        return [f"![{title}]({relative})", "", f"*{title}* (also {others})", ""]
 
 
-def _p(p: float | None) -> str:
-    return "n/a" if p is None else f"{p:.2g}"
-
-
-def _budget_table(rows: Sequence[dict[str, Any]], study: Study) -> str:
-    """Median budget spent per treatment and condition, flagged where it is not like the rest."""
-    lines = ["| condition | treatment | runs | budget spent (median) | |", "|---|---|---|---|---|"]
-    for condition in dict.fromkeys(r.condition for r in study.runs):
-        medians = {}
-        for treatment in study.treatments:
-            spent = [
-                r["budget_spent"]
-                for r in rows
-                if r["treatment"] == treatment and r["condition"] == condition
-                and not math.isnan(r["budget_spent"])
-            ]  # fmt: skip
-            if spent:
-                medians[treatment] = (len(spent), float(np.median(spent)))
-        for treatment, (count, median) in medians.items():
-            others = [m for t, (_, m) in medians.items() if t != treatment]
-            flag = ""
-            if others and abs(median - float(np.median(others))) > BUDGET_TOLERANCE:
-                flag = "**flagged**"
-            lines.append(f"| {condition} | {treatment} | {count} | {median:.0%} | {flag} |")
-    return "\n".join(lines)
-
-
-def _compute(rows: Sequence[dict[str, Any]], study: Study) -> str:
-    lines = [
-        "| treatment | runs | env steps (median) | training s (median) | wall-clock s (sum)"
-        " | core-s (sum) |",
-        "|---|---|---|---|---|---|",
-    ]
-    for treatment in study.treatments:
-        mine = [r for r in rows if r["treatment"] == treatment]
-        if not mine:
-            lines.append(f"| {treatment} | 0 | – | – | – | – |")
-            continue
-        steps = float(np.median([r["env_steps"] for r in mine]))
-        seconds = _statistic([r["seconds"] for r in mine if not math.isnan(r["seconds"])], "median")
-        shown = "–" if math.isnan(seconds) else f"{seconds:.1f}"  # a summary without seconds
-        wall = float(np.nansum([r["wall_seconds"] for r in mine]))
-        core = float(np.nansum([r["core_seconds"] for r in mine]))
-        lines.append(
-            f"| {treatment} | {len(mine)} | {steps:,.0f} | {shown} | {wall:.0f} | {core:.0f} |"
-        )
-    return "\n".join(lines)
-
-
-def write_report(out: str | Path, warn: Callable[[str], None] | None = None) -> Path:
-    """Write ``report.md``, ``runs.csv``, ``tests.csv`` and ``figures/`` in the study's folder.
-
-    ``warn`` hears of each part of a run left out (:class:`LeftOut`), which
-    ``report.md`` lists too.
-    """
-    from experiments.figures import save_figures
-
-    folder = StudyFolder(out)
-    study = folder.study()
-    left_out: list[LeftOut] = []
-    rows = collect_rows(folder, study, left_out)
-    write_bytes(folder.out / "runs.csv", _csv(rows, RUN_COLUMNS))
-    found = comparisons(rows, study)
-    write_bytes(folder.out / "tests.csv", _csv(_test_rows(found), TEST_COLUMNS))
-
-    def unreadable(run_id: str, what: str, reason: str) -> None:
-        left_out.append(LeftOut(run_id, what, reason))
-
-    figures = save_figures(folder, study, rows, unreadable)
-    for part in left_out:
-        if warn is not None:
-            warn(str(part))
-    conditions = list(dict.fromkeys(r.condition for r in study.runs))
-    unread = sum(part.what == "its row" for part in left_out)
-    finished = f"{len(rows)} of {len(study.runs)} runs finished"
+def _header(f: Findings) -> list[str]:
+    unread = sum(part.what == "its row" for part in f.left_out)
+    finished = f"{len(f.rows)} of {len(f.study.runs)} runs finished"
     if unread:
         finished += f" and read ({unread} more finished but cannot be read: see 'Left out')"
-    parts = [
-        f"# Study `{study.name}`: report",
+    return [
+        f"# Study `{f.study.name}`: report",
         "",
-        study.description.strip(),
+        f.study.description.strip(),
         "",
         f"{finished}; written {datetime.now(UTC).isoformat(timespec='seconds')} from their"
-        " `summary.json` files (`runs.csv`). Every agent is scored on the standard evaluation"
-        " suite (18 mazes x 4 rotations) and by the input-recognition test.",
+        " `summary.json` and `evaluations.csv` files (`runs.csv`). Each run's agent is played"
+        " as it trains on one evaluation set (family mazes with new seeds and the training"
+        " maze, 4 rotations each; `evaluations.csv`), and its final agent on the standard"
+        " evaluation suite (18 mazes x 4 rotations) and the input-recognition test (Table 3).",
         "",
     ]
-    for condition in conditions:
-        spec = next(r for r in study.runs if r.condition == condition)
+
+
+def _budget_section(f: Findings) -> list[str]:
+    flagged = [s for s in f.spent.values() if s.flagged]
+    low, high = 1 - BUDGET_TOLERANCE, 1 + BUDGET_TOLERANCE
+    if flagged:
+        names = "; ".join(
+            f"`{s.treatment}` ({s.outside} of {s.n} runs; median {s.median:.0%},"
+            f" {s.low:.0%} – {s.high:.0%})"
+            for s in flagged
+        )
+        verdict = (
+            f"**{FLAG} {len(flagged)} treatment(s) did not spend their budget within"
+            f" {BUDGET_TOLERANCE:.0%}**: {names}. A comparison with them is not at equal"
+            f" budget; they are marked {FLAG} in every table."
+        )
+    else:
+        verdict = f"Every run spent between {low:.0%} and {high:.0%} of its budget."
+    return [
+        "## Budgets held equal",
+        "",
+        verdict,
+        "",
+        f"The share of its budget each run spent, in the budget's unit (env steps for a steps"
+        f" budget, else training seconds), per treatment; a treatment is flagged when a run"
+        f" spent less than {low:.0%} or more than {high:.0%}. Runs say why they stopped early"
+        " in `summary.json` (`stopped_early`, in `runs.csv`).",
+        "",
+        budget_table(f.spent),
+        "",
+    ]
+
+
+def _final_section(f: Findings) -> list[str]:
+    parts = [
+        "## Final agents on the evaluation set",
+        "",
+        "The last row of each run's `evaluations.csv` (its final agent): interquartile mean"
+        " over seeds with a 95% stratified bootstrap interval (2000 resamples), n runs.",
+        "",
+    ]
+    for condition, data in f.finals.items():
+        if not data.treatments:
+            continue
+        parts += [f"### `{condition}`", "", final_table(data, f.flagged), ""]
+        parts += _set_notes(data)
+    return parts
+
+
+def _set_notes(data: ComparisonData) -> list[str]:
+    """What a comparison's runs left out and without evaluations are, in words."""
+    notes = []
+    if data.digest:
+        notes.append(f"Evaluation set `{data.digest}`.")
+    if data.left_out:
+        notes.append(
+            f"{len(data.left_out)} run(s) left out (see 'Left out'): "
+            + "; ".join(f"`{run}` {reason}" for run, reason in data.left_out)
+            + "."
+        )
+    if data.without:
+        notes.append(
+            f"{len(data.without)} finished run(s) without readable evaluations (no"
+            " `evaluations.csv`: a run from before anytime evaluations, or `evaluation_points ="
+            " 0`; or one left out) are not in it."
+        )
+    return [" ".join(notes), ""] if notes else []
+
+
+def _comparison_section(f: Findings) -> list[str]:
+    parts = [
+        "## Comparisons over time",
+        "",
+        "Per comparison: learning curves of the agent each run would hand over, played on the"
+        " evaluation set at evenly spaced fractions of its budget: the interquartile mean over"
+        " seeds at each point (runs aligned by point index, the point placed at the seeds'"
+        " median env steps or training seconds) in a 95% stratified bootstrap band, against"
+        " env steps and training time (log scales; the budget dotted); the performance"
+        " profile of the final agents (fraction of runs whose success rate exceeds each"
+        " threshold, 95% bands); and the probability that a run of the first treatment beats"
+        " one of the second (final agents; 0.5: neither), with its 95% interval.",
+        "",
+    ]
+    declared = any(data.comparison.declared for data, _ in f.compared)
+    if f.compared and not declared:
+        parts += [
+            "The study declares no comparison (`[[comparisons]]`): these are the default ones,"
+            " the algorithms within each trainer and the trainers with each algorithm.",
+            "",
+        ]
+    for data, figures in f.compared:
+        parts += _one_comparison(f, data.comparison, data, figures)
+    return parts
+
+
+def _one_comparison(
+    f: Findings, comparison: StudyComparison, data: ComparisonData, figures: list
+) -> list[str]:
+    names = ", ".join(f"`{t}`" for t in comparison.treatments)
+    parts = [f"### {comparison.title}", "", f"`{comparison.name}`: {names}.", ""]
+    if not data.treatments:
+        return [*parts, "No run of these treatments has evaluations to draw.", ""]
+    for title, path in figures:
+        parts += f.link(title, path)
+    table = improvement_table(data, f.flagged)
+    if table:
+        parts += ["Probability of improvement (final agents, evaluation set):", "", table, ""]
+    return parts + _set_notes(data)
+
+
+def _table3_section(f: Findings) -> list[str]:
+    parts = []
+    for condition in f.study.conditions:
+        spec = next(r for r in f.study.runs if r.condition == condition)
         parts += [
             f"## Table 3, `{condition}` ({_budget_words(spec)})",
             "",
-            "Maximum and median over the seeds of each treatment; the best value of each statistic"
-            " in **bold**, the second in *italics* (higher is better everywhere).",
+            "The final agents on the standard evaluation suite, as the paper: maximum and median"
+            " over the seeds of each treatment; the best value of each statistic in **bold**,"
+            " the second in *italics* (higher is better everywhere).",
             "",
-            table3(rows, study, condition)[0],
+            table3(f.rows, f.study, condition, f.flagged)[0],
             "",
         ]
         # the paper's agents were DD robots (discrete inputs and moves)
-        paper = paper_comparison(rows, study, condition) if spec.config["robot"] == "DD" else None
+        paper = None
+        if spec.config["robot"] == "DD":
+            paper = paper_comparison(f.rows, f.study, condition, f.flagged)
         if paper:
             parts += [
                 f"### Beside the paper (this study / {PAPER_CITATION})",
@@ -510,52 +335,53 @@ def write_report(out: str | Path, warn: Callable[[str], None] | None = None) -> 
                 paper,
                 "",
             ]
-    parts += [
-        "## Pairwise differences",
+    return parts
+
+
+def _tests_section(f: Findings) -> list[str]:
+    return [
+        "## Pairwise tests (the paper's statistics)",
         "",
-        "Treatments under the same condition that differ in one factor, compared per metric with"
-        " an independent t-test (as the paper) and a Mann-Whitney U test, each corrected with"
-        " Benjamini-Hochberg over the metric's pairs; effect sizes Cohen's d and the"
-        " rank-biserial correlation (first vs second). Stars: * p < 0.05, ** < 1e-2,"
-        " *** < 1e-3, **** < 1e-4. Every pair is in `tests.csv`; the significant ones:",
+        "Treatments under the same condition that differ in one factor, compared per"
+        " standard-suite metric with an independent t-test (as the paper) and a Mann-Whitney U"
+        " test, each corrected with Benjamini-Hochberg over the metric's pairs; effect sizes"
+        " Cohen's d and the rank-biserial correlation (first vs second). Stars: * p < 0.05,"
+        f" ** < 1e-2, *** < 1e-3, **** < 1e-4, shown only for pairs of at least {MIN_SEEDS}"
+        " seeds each. Every pair is in `tests.csv`; the significant ones:",
         "",
-        _significant(found),
-        "",
-        "## Figures",
+        significance(f.tests, f.flagged),
         "",
     ]
-    for title, path in figures:
-        parts += [f"### {title}", "", f"![{title}]({path.relative_to(folder.out).as_posix()})", ""]
-    if left_out:
-        parts += ["## Left out", "", _left_out(left_out), ""]
-    parts += [
-        "## Budget spent",
-        "",
-        "The share of its budget each run spent (the most of any budget it was given), median"
-        f" per treatment; **flagged** where it differs from the other treatments' median under"
-        f" the same condition by more than {BUDGET_TOLERANCE:.0%}: their comparison is not at"
-        " equal budget. Runs record why they stopped early in `summary.json` (`stopped_early`,"
-        " in `runs.csv`).",
-        "",
-        _budget_table(rows, study),
-        "",
+
+
+def _figures_section(f: Findings) -> list[str]:
+    parts = ["## Standard-suite figures", ""]
+    for title, path in f.figures:
+        parts += [f"### {title}", "", *f.link(title, path)]
+    return parts
+
+
+def _tail_sections(f: Findings) -> list[str]:
+    parts = []
+    if f.left_out:
+        parts += ["## Left out", "", _left_out(f.left_out), ""]
+    return [
+        *parts,
         "## Compute",
         "",
         "Env steps and training seconds from `summary.json`; wall-clock seconds of each run's"
         " process (over every resumed part) and core-seconds (wall-clock x the threads it was"
         " given) from the runner.",
         "",
-        _compute(rows, study),
+        compute_table(f.rows, f.study, f.flagged),
         "",
     ]
-    path = folder.out / "report.md"
-    write_bytes(path, "\n".join(parts).encode("utf-8"))
-    return path
 
 
 def _left_out(left_out: Sequence[LeftOut]) -> str:
-    """The parts of runs the report could not read, one a line, with the reason."""
-    lines = ["Files of these runs cannot be read; what they would have given is not above:", ""]
+    """The parts of runs the report could not use, one a line, with the reason."""
+    lines = ["These runs' files cannot be read or set beside the others; what they would have"]
+    lines += ["given is not above:", ""]
     lines += [f"* `{part.run}`: {part.what}: {part.reason}" for part in left_out]
     return "\n".join(lines)
 
@@ -568,3 +394,71 @@ def _budget_words(run: PlannedRun) -> str:
         words.append(f"{run.budget_seconds:g} s")
     text = " or ".join(words) if words else "no budget"
     return text if run.robot is None else f"{text}, robot {run.robot}"
+
+
+# -- writing it -----------------------------------------------------------------------------------
+
+
+def _set_apart(datas: Sequence[ComparisonData], left_out: list[LeftOut]) -> None:
+    """Add the runs the comparisons set apart to ``left_out``: one entry per run and reason."""
+    grouped: dict[tuple[str, str], list[str]] = {}
+    for data in datas:
+        for run, reason in data.left_out:
+            grouped.setdefault((run, reason), []).append(data.comparison.name)
+    for (run, reason), names in grouped.items():
+        left_out.append(LeftOut(run, f"its evaluations in {', '.join(names)}", reason))
+
+
+def _findings(folder: StudyFolder, study: Study) -> Findings:
+    """Read the runs, write ``runs.csv``, ``tests.csv`` and the figures; what the text needs."""
+    left_out: list[LeftOut] = []
+    rows, finished, curves = read_runs(folder, study, left_out)
+    write_bytes(folder.out / "runs.csv", to_csv(rows, RUN_COLUMNS))
+    tests = comparisons(rows, study)
+    write_bytes(folder.out / "tests.csv", to_csv(_test_rows(tests), TEST_COLUMNS))
+    out = folder.out / "figures"
+    palette = Palette([run.cell for run in study.runs])
+    palette.save(out / "colours.json")
+    compared = []
+    for comparison in study.comparisons:
+        data = comparison_data(comparison, finished, curves)
+        compared.append((data, write_comparison_figures(data, palette, out)))
+    finals = {}
+    for condition in study.conditions:
+        mine = tuple(t for t in study.treatments if t.endswith(f"/{condition}"))
+        whole = StudyComparison(condition, condition, condition, mine, (), declared=False)
+        finals[condition] = comparison_data(whole, finished, curves)
+    _set_apart([*(data for data, _ in compared), *finals.values()], left_out)
+
+    def unreadable(run_id: str, what: str, reason: str) -> None:
+        left_out.append(LeftOut(run_id, what, reason))
+
+    figures = save_figures(out, folder.out, rows, study.treatments, palette, unreadable)
+    spent = budgets_spent(rows, study)
+    return Findings(folder, study, rows, spent, compared, finals, tests, figures, left_out)
+
+
+def write_report(out: str | Path, warn: Callable[[str], None] | None = None) -> Path:
+    """Write ``report.md``, ``runs.csv``, ``tests.csv`` and ``figures/`` in the study's folder.
+
+    ``warn`` hears of each part of a run left out (:class:`LeftOut`), which
+    ``report.md`` lists too.
+    """
+    folder = StudyFolder(out)
+    findings = _findings(folder, folder.study())
+    for part in findings.left_out:
+        if warn is not None:
+            warn(str(part))
+    parts = [
+        *_header(findings),
+        *_budget_section(findings),
+        *_final_section(findings),
+        *_comparison_section(findings),
+        *_table3_section(findings),
+        *_tests_section(findings),
+        *_figures_section(findings),
+        *_tail_sections(findings),
+    ]
+    path = folder.out / "report.md"
+    write_bytes(path, "\n".join(parts).encode("utf-8"))
+    return path

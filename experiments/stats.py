@@ -13,6 +13,11 @@ one metric (the family); a pair that cannot be tested (fewer than 2 values
 in a group, or no variance at all; for the t-test, no variance within the
 groups, where its statistic is infinite) gets no p-value and stays out of
 the family.
+
+Stars are shown only where a test can reach them: a pair with a group of
+fewer than :data:`MIN_SEEDS` seeds gets none (:func:`stars_withheld` says
+why; with 3 against 3 seeds, an exact two-sided Mann-Whitney U test cannot
+go below p = 0.1). Its p-values are still computed and kept.
 """
 
 from __future__ import annotations
@@ -26,10 +31,21 @@ from itertools import combinations
 import numpy as np
 from scipy import stats
 
-__all__ = ["Comparison", "cohens_d", "compare_pairs", "rank_biserial", "stars"]
+__all__ = [
+    "MIN_SEEDS",
+    "Comparison",
+    "cohens_d",
+    "compare_pairs",
+    "rank_biserial",
+    "smallest_u_p",
+    "stars",
+    "stars_withheld",
+]
 
 #: The paper's star thresholds (p below each: one more star).
 STAR_THRESHOLDS = (0.05, 1e-2, 1e-3, 1e-4)
+#: Fewest seeds in each group of a pair for its stars to be shown.
+MIN_SEEDS = 5
 
 
 def stars(p: float | None) -> str:
@@ -38,6 +54,29 @@ def stars(p: float | None) -> str:
         return "n/a"
     count = sum(p < threshold for threshold in STAR_THRESHOLDS)
     return "*" * count if count else "ns"
+
+
+def smallest_u_p(n1: int, n2: int) -> float:
+    """The smallest p an exact two-sided Mann-Whitney U test of ``n1`` against ``n2`` values gives.
+
+    Every value of one group above every value of the other is the most
+    extreme of the ``C(n1 + n2, n1)`` equally likely orders, at each end:
+    ``p = 2 / C(n1 + n2, n1)`` (1 at most).
+    """
+    if n1 < 1 or n2 < 1:
+        return 1.0
+    return min(1.0, 2.0 / math.comb(n1 + n2, n1))
+
+
+def stars_withheld(n1: int, n2: int) -> str | None:
+    """Why a pair of ``n1`` and ``n2`` seeds gets no stars; ``None`` when it may have them."""
+    if min(n1, n2) >= MIN_SEEDS:
+        return None
+    return (
+        f"{n1} vs {n2} seeds, fewer than {MIN_SEEDS} in a group: no stars (a two-sided"
+        f" Mann-Whitney U test of {n1} against {n2} values cannot reach"
+        f" p < {smallest_u_p(n1, n2):.2g})"
+    )
 
 
 def cohens_d(a: Sequence[float], b: Sequence[float]) -> float:
@@ -78,12 +117,19 @@ class Comparison:
     rank_biserial: float
 
     @property
+    def withheld(self) -> str | None:
+        """Why this pair shows no stars (:func:`stars_withheld`), or ``None``."""
+        return stars_withheld(self.n_first, self.n_second)
+
+    @property
     def t_stars(self) -> str:
-        return stars(self.t_p_corrected)
+        """The stars of the corrected t-test's p; ``""`` where they are withheld."""
+        return "" if self.withheld else stars(self.t_p_corrected)
 
     @property
     def u_stars(self) -> str:
-        return stars(self.u_p_corrected)
+        """The stars of the corrected U test's p; ``""`` where they are withheld."""
+        return "" if self.withheld else stars(self.u_p_corrected)
 
 
 def _testable(x: np.ndarray, y: np.ndarray) -> bool:

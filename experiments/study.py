@@ -28,6 +28,13 @@ same form is a study::
     trainer = "coevolution"
     algorithm = "neat"
 
+    [[comparisons]]                   # what the report draws and tests (see below)
+    name = "regimes-ppo"              # letters, digits, dashes: the figures' file names
+    title = "Regimes with PPO"        # optional
+    budget = "steps"                  # one of [budgets]; optional when there is one
+    treatments = ["direct/ppo", "interpolation/ppo", "edhucat-careful/ppo"]  # 1 to 8 cells
+    pairs = [["interpolation/ppo", "direct/ppo"]]  # probability of improvement of each
+
 A *treatment* is a (trainer, algorithm, condition) cell, where the
 condition is the budget (and the robot, when the study has several); each
 treatment runs once per seed. Every run's config is built and checked by its trainer's config class
@@ -37,6 +44,17 @@ message naming the file and the run. Checks that cost nothing come first:
 the file's nesting (at most :data:`MAX_DEPTH`), the seeds (``0 .. 2**32 - 1``,
 what a run's seed may be) and the number of runs, counted from the grid
 before a single run is built (at most :data:`MAX_RUNS`).
+
+A *comparison* (``[[comparisons]]``) is what one figure of the report
+compares: up to :data:`MAX_LINES` trainer/algorithm cells of the grid
+(``treatments``) under one ``budget``, each a line of learning curves and of
+a performance profile, and the ``pairs`` whose probability of improvement
+the report gives (by default, the pairs that differ in one factor, trainer
+or algorithm; else every pair; ``pairs = []``: none). ``robot`` picks one of
+the study's robots; without it, a study of several robots gets the
+comparison once per robot (named ``name-robot``). A study that declares no
+comparison gets, per budget (and robot), the algorithms within each trainer
+and the trainers with each algorithm (:func:`default_comparisons`).
 """
 
 from __future__ import annotations
@@ -54,6 +72,13 @@ from typing import Any
 from amaze.errors import AmazeError, UsageError
 from amaze.runs.config import MAX_SEED
 from amaze.validation import nests_within
+from experiments.comparisons import (
+    MAX_LINES,
+    Grid,
+    StudyComparison,
+    default_comparisons,
+    parse_comparisons,
+)
 from experiments.trainers import (
     ALGORITHMS,
     EVOLUTION_ALGORITHMS,
@@ -62,15 +87,26 @@ from experiments.trainers import (
     trainer_fields,
 )
 
-__all__ = ["STUDIES", "PlannedRun", "Study", "StudyError", "load_study", "study_names"]
+__all__ = [
+    "MAX_LINES",
+    "STUDIES",
+    "PlannedRun",
+    "Study",
+    "StudyComparison",
+    "StudyError",
+    "default_comparisons",
+    "load_study",
+    "study_names",
+]
 
 #: The folder of the shipped studies.
 STUDIES = files("experiments") / "studies"
 #: The keys a study file may have.
 STUDY_KEYS = frozenset(
     {"name", "description", "seeds", "robot", "trainers", "algorithms", "budgets", "options"}
-    | {"exclude"}
+    | {"exclude", "comparisons"}
 )
+
 #: Most runs in one study.
 MAX_RUNS = 10_000
 #: Deepest nesting of tables and arrays in a study file. A study nests a few
@@ -114,6 +150,21 @@ class PlannedRun:
         return f"{self.trainer}_{self.algorithm}_{self.condition}_seed-{self.seed}"
 
     @property
+    def cell(self) -> str:
+        """``trainer/algorithm``: the treatment without its condition (one colour in figures)."""
+        return f"{self.trainer}/{self.algorithm}"
+
+    @property
+    def budget_unit(self) -> str | None:
+        """What the run's budget counts: ``"steps"`` when it has a steps budget, else ``"seconds"``.
+
+        As the anytime evaluations divide it (:mod:`amaze.runs.anytime`).
+        """
+        if self.budget_steps is not None:
+            return "steps"
+        return "seconds" if self.budget_seconds is not None else None
+
+    @property
     def budget_steps(self) -> int | None:
         return self.config.get("budget_steps")
 
@@ -131,11 +182,18 @@ class Study:
     source: str
     text: str
     runs: tuple[PlannedRun, ...]
+    #: What the report compares: the file's ``[[comparisons]]``, else :func:`default_comparisons`.
+    comparisons: tuple[StudyComparison, ...] = ()
 
     @property
     def treatments(self) -> list[str]:
         """The treatments, in the file's order."""
         return list(dict.fromkeys(run.treatment for run in self.runs))
+
+    @property
+    def conditions(self) -> list[str]:
+        """The conditions (budgets, with the robot when there are several), in the file's order."""
+        return list(dict.fromkeys(run.condition for run in self.runs))
 
 
 def study_names() -> list[str]:
@@ -202,6 +260,8 @@ def parse_study(text: str, source: str = "study") -> Study:
     excluded = _excluded(data.get("exclude", []), bad)
     cells = [(t, a) for t in trainers for a in algorithms if (t, a) not in excluded]
     _check_size(len(robots), len(budgets), len(cells), len(seeds), bad)
+    grid = Grid(tuple(budgets), tuple(robots), tuple(cells))
+    comparisons = parse_comparisons(data.get("comparisons", []), grid, bad)
     options = _options(data.get("options", {}), trainers, algorithms, bad)
     curators = _CuratorCheck(bad)
     runs = []
@@ -213,7 +273,8 @@ def parse_study(text: str, source: str = "study") -> Study:
                     config = _config(trainer, algorithm, budget, robot, seed, options)
                     run = PlannedRun(trainer, algorithm, budget_name, seed, config, shown)
                     runs.append(_checked(run, bad, curators))
-    return Study(name.strip(), description, source, text, tuple(runs))
+    comparisons = comparisons or default_comparisons(grid)
+    return Study(name.strip(), description, source, text, tuple(runs), comparisons)
 
 
 def _toml(text: str, source: str, bad: Bad) -> dict[str, Any]:

@@ -1,9 +1,10 @@
 """The config of an ``amaze-train`` run (:class:`TrainConfig`) and its hyperparameter checks.
 
-:class:`TrainConfig` is a :class:`~amaze.runs.curriculum.RegimeConfig`:
-``regime`` is ``direct`` (:class:`rl_baselines.train.SB3Run`), ``interpolation``
-or ``edhucat`` (the curriculum loop, :class:`rl_baselines.curriculum.SB3CurriculumRun`),
-with ``curator``, ``stages``, ``branches`` and ``target`` for the curricula.
+:class:`TrainConfig` is a :class:`~amaze.runs.regime.RegimeConfig`:
+``regime`` is ``direct`` (:class:`rl_baselines.train.SB3Run`), ``interpolation``,
+``edhucat`` or ``edens`` (the curriculum loop, :class:`rl_baselines.curriculum.SB3CurriculumRun`),
+with ``curator``, ``stages``, ``branches`` and ``target`` for the curricula, or
+``coevolution`` (:class:`rl_baselines.coevolution.SB3CoevolutionRun`).
 
 **Rollouts of a curriculum** (:func:`fitted_hyperparameters`). A curriculum
 gives each branch ``budget_steps / (K * S)`` steps (the paper's split), which
@@ -35,6 +36,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from amaze.curriculum.coevolution import MazePopulationConfig
 from amaze.curriculum.regimes import REGIMES, branch_allowance
 from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
 from amaze.runs.config import option
@@ -94,15 +96,11 @@ class TrainConfig(RegimeConfig):
         """Check every field; raise :class:`RLConfigError` naming the bad value."""
         algorithm_class(self.algo)
         self.algo = self.algo.lower()
+        self._check_envs()  # before the regime's checks: a coevolution batch follows from n_envs
         super().validate()
         self._check_budget()
-        for name in ("eval_every", "n_envs"):
-            value = check_integer(name, getattr(self, name), minimum=1, error=RLConfigError)
-            setattr(self, name, value)
         if not isinstance(self.tensorboard, bool):
             raise RLConfigError(f"tensorboard {self.tensorboard!r} is not true or false")
-        if self.n_envs % 4:
-            raise RLConfigError(f"n_envs {self.n_envs} is not a multiple of 4 (one per rotation)")
         if self.regime == "direct" and not self.eval_mazes:
             raise RLConfigError(
                 "eval_mazes is empty: a direct RL run evaluates, checkpoints and logs its"
@@ -111,10 +109,16 @@ class TrainConfig(RegimeConfig):
         if not isinstance(self.hyperparameters, dict):
             raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
         check_hyperparameters(self.algo, self.hyperparameters)
-        if self.regime == "coevolution":
-            self._coevolution_batch()
         self.hyperparameters = used_hyperparameters(self)
         return self
+
+    def _check_envs(self) -> None:
+        """``eval_every`` and ``n_envs`` are integers >= 1, ``n_envs`` a multiple of 4."""
+        for name in ("eval_every", "n_envs"):
+            value = check_integer(name, getattr(self, name), minimum=1, error=RLConfigError)
+            setattr(self, name, value)
+        if self.n_envs % 4:
+            raise RLConfigError(f"n_envs {self.n_envs} is not a multiple of 4 (one per rotation)")
 
     def _check_budget(self) -> None:
         """``budget_steps`` (an integer >= 1) and/or ``budget_seconds`` (a number > 0)."""
@@ -179,17 +183,25 @@ class TrainConfig(RegimeConfig):
                 )
         return {**config, "hyperparameters": table}
 
-    def _coevolution_batch(self) -> None:
-        """One environment per rotation of each batch maze: ``batch`` is ``n_envs / 4``."""
-        batch = self.coevolution.get("batch", self.n_envs // 4)
-        if not isinstance(batch, int) or batch * 4 != self.n_envs:
+    def coevolution_defaults(self) -> dict[str, Any]:
+        """One environment per rotation of each batch maze: ``batch`` is ``n_envs / 4``.
+
+        A batch larger than the population's default capacity raises that
+        default to hold it (a capacity the config gives is its own).
+        """
+        batch = self.n_envs // 4
+        defaults: dict[str, Any] = {"batch": batch}
+        if batch > MazePopulationConfig.capacity:
+            defaults["capacity"] = batch
+        return defaults
+
+    def check_coevolution_options(self, options: MazePopulationConfig) -> None:
+        """The batch fills the environments: ``n_envs`` is 4 x ``batch``."""
+        if options.batch * 4 != self.n_envs:
             raise RLConfigError(
-                f"coevolution batch {batch!r} needs n_envs = 4 x batch (one environment per"
-                f" rotation of each maze), not {self.n_envs}"
+                f"coevolution batch {options.batch!r} needs n_envs = 4 x batch (one environment"
+                f" per rotation of each maze), not {self.n_envs}"
             )
-        self.coevolution = {**self.coevolution, "batch": batch}
-        if self.coevolution.get("capacity", 64) < batch:
-            self.coevolution["capacity"] = batch
 
 
 #: rl-zoo3 entries that name code (wrappers, callbacks): never taken from a file.

@@ -71,6 +71,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.evaluation.protocol import Evaluator
 from amaze.maze import rotations
+from amaze.runs.anytime import Spent
 from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import write_json
 from amaze.runs.lifecycle import Run, RunResult
@@ -172,6 +173,7 @@ class _EvaluationCallback(BaseCallback):
         self.show()
         if self.run.out_of_time():
             return  # learning stops at the next step; the final evaluation follows
+        self.run.started += self.run.evaluate_anytime()  # its seconds are not the budget's
         steps = int(self.model.num_timesteps)
         if steps == 0 or steps - self.run.last_eval_steps >= self.run.config.eval_every:
             self.evaluate_now()
@@ -329,6 +331,11 @@ class SB3Run(Run):
                 callback.evaluate_now()
             callback.init_callback(model)
             callback.show()
+
+    def spent(self) -> Spent:
+        assert self.model is not None
+        steps = int(self.model.num_timesteps)
+        return Spent(steps, steps, self.seconds())
 
     def final_agent(self) -> SB3Agent:
         """The model when training stopped, or the best evaluated one (``agent_rule``)."""

@@ -25,11 +25,11 @@ from rl_baselines.config import TrainConfig
 EVERYWHERE = {
     EvolveConfig: {
         "robot", "seed", "regime", "algo", "fitness", "budget_steps", "budget_seconds",
-        "checkpoint_seconds", "algorithm",
+        "checkpoint_seconds", "algorithm", "evaluation_points", "evaluation_family",
     },
     TrainConfig: {
         "robot", "seed", "regime", "algo", "budget_steps", "budget_seconds", "eval_every",
-        "n_envs", "tensorboard", "hyperparameters",
+        "n_envs", "tensorboard", "hyperparameters", "evaluation_points", "evaluation_family",
     },
 }  # fmt: skip
 #: A value other than the default for each regime-bound field (per regime where it matters).

@@ -948,6 +948,36 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     return array
 
 
+def _maze_rows(tables: MazeTables) -> tuple[np.ndarray, np.ndarray]:
+    """The per-maze rows that the step kernels read: int64 (m, 11) and float64 (m, 2).
+
+    The integer row holds the maze's cell offset, size, start and end cells,
+    path length and deadline in steps (columns ``_OFF`` ... ``_DEADLINE_STEPS``);
+    the real row its deadline and finish reward (``_DEADLINE``, ``_FINISH``).
+    """
+    t = tables
+    mint = np.ascontiguousarray(
+        np.stack(
+            [
+                t.cell_offset,
+                t.width,
+                t.height,
+                t.start_ij[:, 0],
+                t.start_ij[:, 1],
+                t.end_ij[:, 0],
+                t.end_ij[:, 1],
+                t.path_length,
+                t.start,
+                t.end,
+                np.ceil(t.deadline).astype(np.int64),
+            ],
+            axis=1,
+        ).astype(np.int64)
+    )
+    mflt = np.ascontiguousarray(np.stack([t.deadline, t.finish], axis=1))
+    return mint, mflt
+
+
 class BatchEngine:
     """``n_agents`` agents of one robot kind in a list of mazes, stepped together.
 
@@ -994,9 +1024,29 @@ class BatchEngine:
         self.n_agents = check_n_agents(n_agents, self.robot)
         self.deadline_factor = check_deadline_factor(deadline_factor)
         self.mazes = [as_maze(m) for m in mazes]
+        self.tables: MazeTables = self._matching_tables(tables)
+        self.auto_reset = bool(auto_reset)
+        self.kind = self.robot.kind
+        self.dt = self.tables.dt
+        self._mint, self._mflt = _maze_rows(self.tables)
+        self._allocate_agent_state()
+        self._choose_kernels(parallel)
+        self._build_empty_results()
+        if assignment is None:
+            assignment = np.arange(self.n_agents) % len(self.mazes)
+        self._ist[:, _MAZE] = self._check_assignment(assignment, self.n_agents)
+        self.reset()
+
+    def _matching_tables(self, tables: MazeTables | None) -> MazeTables:
+        """The mazes' compiled tables: ``tables`` when they fit, compiled here when absent.
+
+        Tables given by the caller (shared between engines) must be of this
+        engine's robot, deadline factor and number of mazes, or the steps would
+        read another maze's walls: they are refused (:class:`OptionError`).
+        """
         if tables is None:
-            tables = compile_mazes(self.mazes, self.robot, self.deadline_factor)
-        elif (tables.robot, tables.deadline_factor, tables.n_mazes) != (
+            return compile_mazes(self.mazes, self.robot, self.deadline_factor)
+        if (tables.robot, tables.deadline_factor, tables.n_mazes) != (
             self.robot, self.deadline_factor, len(self.mazes),
         ):  # fmt: skip
             raise OptionError(
@@ -1004,30 +1054,15 @@ class BatchEngine:
                 f" factor {tables.deadline_factor}, not of {len(self.mazes)} for {self.robot}"
                 f" with {self.deadline_factor}"
             )
-        self.tables: MazeTables = tables
-        self.auto_reset = bool(auto_reset)
-        self.kind = self.robot.kind
-        self.dt = self.tables.dt
-        t = self.tables
-        self._mint = np.ascontiguousarray(
-            np.stack(
-                [
-                    t.cell_offset,
-                    t.width,
-                    t.height,
-                    t.start_ij[:, 0],
-                    t.start_ij[:, 1],
-                    t.end_ij[:, 0],
-                    t.end_ij[:, 1],
-                    t.path_length,
-                    t.start,
-                    t.end,
-                    np.ceil(t.deadline).astype(np.int64),
-                ],
-                axis=1,
-            ).astype(np.int64)
-        )
-        self._mflt = np.ascontiguousarray(np.stack([t.deadline, t.finish], axis=1))
+        return tables
+
+    def _allocate_agent_state(self) -> None:
+        """Allocate the agents' state arrays and the buffers that a step fills.
+
+        The integer and real states hold every agent's cell, clock and
+        counters; the compact episode buffers collect the episodes that end in
+        one step, which :meth:`step` copies out.
+        """
         n = self.n_agents
         self._ist = np.zeros((n, _N_ISTATE), dtype=np.int32)
         self._fst = np.zeros((n, _N_FSTATE), dtype=np.float64)
@@ -1040,7 +1075,16 @@ class BatchEngine:
         self._ep_ret = np.zeros(n, dtype=np.float64)
         self._ep_success = np.zeros(n, dtype=np.bool_)
         self._final = np.zeros(self._obs_shape, dtype=self._obs_dtype)
-        if parallel is None and not threads_may_pay_off(n * _WORK_PER_AGENT[self.kind]):
+
+    def _choose_kernels(self, parallel: bool | None) -> None:
+        """Pick the robot kind's step kernels and the maze tables they read.
+
+        A batch too small for threads to pay off runs the serial kernel
+        without timing; otherwise ``parallel`` (or the timing, when ``None``)
+        decides (:attr:`kernel_choice`).
+        """
+        t = self.tables
+        if parallel is None and not threads_may_pay_off(self.n_agents * _WORK_PER_AGENT[self.kind]):
             parallel = False
         if self.kind == "discrete":
             kernels = (_step_discrete, _step_discrete_parallel)
@@ -1053,7 +1097,12 @@ class BatchEngine:
             self._tables_args = (t.walls, t.canvas, t.canvas_offset)
         #: The step kernel: serial or parallel, chosen by timing unless ``parallel`` says which.
         self.kernel_choice = KernelChoice(*kernels, parallel)
-        # what a step in which no episode ended returns besides its four arrays
+
+    def _build_empty_results(self) -> None:
+        """Build what a step in which no episode ended returns besides its four arrays.
+
+        Read-only empty arrays, made once and shared by every such step.
+        """
         no_ints = _read_only(np.zeros((_N_EP_INT, 0), dtype=np.int64))
         self._no_episodes = _build(
             EndedEpisodes,
@@ -1068,10 +1117,6 @@ class BatchEngine:
             deadline_factor=self.deadline_factor,
         )
         self._no_final = _read_only(np.zeros((0, *self.observation_shape), self._obs_dtype))
-        if assignment is None:
-            assignment = np.arange(n) % len(self.mazes)
-        self._ist[:, _MAZE] = self._check_assignment(assignment, n)
-        self.reset()
 
     # -- description ----------------------------------------------------------
 

@@ -97,6 +97,10 @@ class RewardScheme:
     ``path_length`` is a positive integer, ``dt`` a positive number and
     ``deadline_factor`` checked by :func:`check_deadline_factor`
     (:class:`~amaze.errors.OptionError` otherwise).
+
+    >>> scheme = RewardScheme(path_length=10, dt=0.1)
+    >>> scheme.finish, scheme.deadline, scheme.optimal_reward
+    (19.0, 400.0, 10.0)
     """
 
     path_length: int
@@ -149,7 +153,13 @@ def pretty_reward(cumulative_reward: float, scheme: RewardScheme) -> float:
 def normalized_reward(
     success: bool, steps: int, collisions: int, backsteps: int, path_length: int, dt: float
 ) -> float:
-    """The paper's normalised cumulative reward ``R̄`` (1 for an optimal run)."""
+    """The paper's normalised cumulative reward ``R̄`` (1 for an optimal run).
+
+    >>> normalized_reward(True, steps=90, collisions=0, backsteps=0, path_length=10, dt=0.1)
+    1.0
+    >>> normalized_reward(True, steps=90, collisions=2, backsteps=0, path_length=10, dt=0.1)
+    0.98
+    """
     return (
         PAPER_FINISH * bool(success)
         - dt * steps / (path_length - 1)

@@ -433,27 +433,16 @@ def _add_agent_options(
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``amaze`` and its sub-commands."""
-    parser = CommandParser(
-        prog="amaze",
-        description="Generate, inspect, render and measure AMaze mazes from their strings"
-        " (e.g. M4_20x20_C1_l.25_L.25_t.5_T.5).",
-    )
-    parser.add_argument(
-        "--signs",
-        action="append",
-        default=[],
-        metavar="PATH",
-        help="register custom sign images: a PNG file or a folder of them (repeatable)",
-    )
-    commands = parser.add_subparsers(dest="command", required=True, parser_class=CommandParser)
-
+def _add_inspect(commands: argparse._SubParsersAction) -> None:
+    """``amaze inspect``: describe mazes, one line (or JSON object) per maze."""
     inspect = commands.add_parser("inspect", help="describe mazes (JSON Lines with --json)")
     inspect.add_argument("mazes", nargs="+", metavar="MAZE", help="maze strings; - reads stdin")
     inspect.add_argument("--json", action="store_true", help="one JSON object per maze and line")
     inspect.set_defaults(run=_cmd_inspect)
 
+
+def _add_render(commands: argparse._SubParsersAction) -> None:
+    """``amaze render``: draw one maze to a PNG file."""
     render = commands.add_parser("render", help="draw a maze to a PNG file")
     render.add_argument("maze", metavar="MAZE", help="maze string")
     render.add_argument("-o", "--output", default="maze.png", help="PNG file (default maze.png)")
@@ -467,24 +456,32 @@ def build_parser() -> argparse.ArgumentParser:
     )
     render.set_defaults(run=_cmd_render)
 
+
+def _add_stats(commands: argparse._SubParsersAction) -> None:
+    """``amaze stats``: the statistics and metrics table of mazes."""
     stats = commands.add_parser("stats", help="statistics and metrics table of mazes")
     stats.add_argument("mazes", nargs="+", metavar="MAZE", help="maze strings; - reads stdin")
     stats.add_argument("--csv", metavar="FILE", help="also write the table as CSV")
     stats.set_defaults(run=_cmd_stats)
 
-    for name in ("run", "play"):
-        run = commands.add_parser(
-            name,
-            help="run a controller for one episode in a maze"
-            + (" (same as run)" if name == "play" else ""),
-        )
-        run.add_argument("maze", metavar="MAZE", help="maze string")
-        _add_agent_options(run)
-        run.add_argument("--trajectory", metavar="PNG", help="save the trajectory picture")
-        run.add_argument("--gif", metavar="GIF", help="save an animation of the episode")
-        run.add_argument("--json", action="store_true", help="print the outcome as JSON")
-        run.set_defaults(run=_cmd_run)
 
+def _add_run(commands: argparse._SubParsersAction, name: str) -> None:
+    """``amaze run`` (or its alias ``amaze play``): one episode of a controller in a maze."""
+    run = commands.add_parser(
+        name,
+        help="run a controller for one episode in a maze"
+        + (" (same as run)" if name == "play" else ""),
+    )
+    run.add_argument("maze", metavar="MAZE", help="maze string")
+    _add_agent_options(run)
+    run.add_argument("--trajectory", metavar="PNG", help="save the trajectory picture")
+    run.add_argument("--gif", metavar="GIF", help="save an animation of the episode")
+    run.add_argument("--json", action="store_true", help="print the outcome as JSON")
+    run.set_defaults(run=_cmd_run)
+
+
+def _add_inputs(commands: argparse._SubParsersAction) -> None:
+    """``amaze inputs``: the input-recognition test of a controller."""
     inputs = commands.add_parser("inputs", help="the input-recognition test of a controller")
     _add_agent_options(inputs)
     inputs.add_argument(
@@ -500,6 +497,9 @@ def build_parser() -> argparse.ArgumentParser:
     inputs.add_argument("--png", metavar="FILE", help="write the summary picture")
     inputs.set_defaults(run=_cmd_inputs)
 
+
+def _add_suite(commands: argparse._SubParsersAction) -> None:
+    """``amaze suite``: list, render or evaluate on the standard evaluation suite."""
     suite = commands.add_parser(
         "suite", help="list, render or evaluate on the standard evaluation suite"
     )
@@ -514,6 +514,9 @@ def build_parser() -> argparse.ArgumentParser:
     suite.add_argument("--csv", metavar="FILE", help="with --evaluate: one row per episode")
     suite.set_defaults(run=_cmd_suite)
 
+
+def _add_evaluate(commands: argparse._SubParsersAction) -> None:
+    """``amaze evaluate``: score an agent on mazes by the evaluation protocol."""
     evaluate = commands.add_parser(
         "evaluate", help="score an agent on mazes by the evaluation protocol"
     )
@@ -542,6 +545,9 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--csv", metavar="FILE", help="write one row per episode")
     evaluate.set_defaults(run=_cmd_evaluate)
 
+
+def _add_interpolate(commands: argparse._SubParsersAction) -> None:
+    """``amaze interpolate``: the interpolation curriculum from a start maze to an end maze."""
     interpolate = commands.add_parser(
         "interpolate", help="the interpolation curriculum from a start maze to an end maze"
     )
@@ -558,6 +564,37 @@ def build_parser() -> argparse.ArgumentParser:
     interpolate.add_argument("--json", action="store_true", help="print a JSON list of strings")
     interpolate.add_argument("--render", metavar="PNG", help="draw every stage in one picture")
     interpolate.set_defaults(run=_cmd_interpolate)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``amaze`` and its sub-commands.
+
+    The sub-commands are added in the order that ``amaze --help`` lists them,
+    one ``_add_<command>`` function each.
+    """
+    parser = CommandParser(
+        version=True,
+        prog="amaze",
+        description="Generate, inspect, render and measure AMaze mazes from their strings"
+        " (e.g. M4_20x20_C1_l.25_L.25_t.5_T.5).",
+    )
+    parser.add_argument(
+        "--signs",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="register custom sign images: a PNG file or a folder of them (repeatable)",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=CommandParser)
+    _add_inspect(commands)
+    _add_render(commands)
+    _add_stats(commands)
+    for name in ("run", "play"):
+        _add_run(commands, name)
+    _add_inputs(commands)
+    _add_suite(commands)
+    _add_evaluate(commands)
+    _add_interpolate(commands)
     return parser
 
 

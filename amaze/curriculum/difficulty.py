@@ -128,6 +128,9 @@ def difficulty(maze: MazeLike | DifficultyProfile) -> float:
 
     ``sorted(mazes, key=difficulty)`` orders mazes from easy to hard; the score
     is a linear extension of :func:`harder_or_equal`.
+
+    >>> sorted(["M4_10x10_C1_t.5_T.5", "M4_10x10_U", "M4_10x10_C1"], key=difficulty)
+    ['M4_10x10_U', 'M4_10x10_C1', 'M4_10x10_C1_t.5_T.5']
     """
     return _profile(maze).score()
 
@@ -140,5 +143,10 @@ def harder_or_equal(a: MazeLike | DifficultyProfile, b: MazeLike | DifficultyPro
     and transitive; two mazes may be incomparable (a long unicursive maze and a
     short one with traps), which is when a curator needs :func:`difficulty`.
     Profiles may be given instead of mazes, to avoid generating twice.
+
+    >>> harder_or_equal("M4_10x10_C1_t.5_T.5", "M4_10x10_C1")  # the same maze plus traps
+    True
+    >>> harder_or_equal("M4_10x10_C1", "M4_10x10_C1_t.5_T.5")
+    False
     """
     return _profile(a).dominates(_profile(b))

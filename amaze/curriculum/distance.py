@@ -111,5 +111,14 @@ def maze_distance(a: MazeLike, b: MazeLike, *, metrics_weight: float = 0.0) -> f
     zero exactly for the same spec, and it satisfies the triangle inequality.
     Dormant clues and traps of a unicursive maze count, as they act again when
     intersections are turned on.
+
+    >>> maze_distance("M4_10x10_C1", "M5_10x10_C1")  # another seed
+    0.1
+    >>> round(maze_distance("M4_10x10_C1", "M4_20x20_C1"), 3)  # twice the size
+    0.177
+    >>> maze_distance("M4_10x10_C1", "M4_10x10_NE_C1")  # the opposite corner
+    1.0
+    >>> maze_distance("M4_10x10_C1", "M4_10x10_C1_l.25_L.25")  # lures (1) at p = 0.25
+    1.25
     """
     return math.fsum(distance_components(a, b, metrics_weight=metrics_weight).values())

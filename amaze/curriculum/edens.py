@@ -18,7 +18,7 @@ Here the alternatives are the branches of the curriculum loop:
   equal to it is drawn again, a few times). By default the mutations are
   *directed*, as MCC's grow its mazes: each step is drawn among the
   operators that bring the maze closer to the target
-  (:func:`~amaze.curriculum.genome.maze_distance` falls: a larger side up to
+  (:func:`~amaze.curriculum.distance.maze_distance` falls: a larger side up to
   the target's, the target's signs and probabilities, intersections) and the
   neutral ones (:data:`NEUTRAL_OPERATORS`: other walls, another start
   corner); when the target has clues, a maze that gets intersections gets
@@ -35,7 +35,7 @@ Here the alternatives are the branches of the curriculum loop:
 
   1. success rate on the validation mazes,
   2. mean R̄ on the validation mazes,
-  3. difficulty reached: :func:`~amaze.curriculum.genome.difficulty` of its
+  3. difficulty reached: :func:`~amaze.curriculum.difficulty.difficulty` of its
      own maze times its success rate there;
 
   the Pareto front (the candidates no other one beats on every criterion)

@@ -148,7 +148,7 @@ def save_curriculum_progress(
     Top: per stage, at the env steps spent by its end, the selected branch's
     success on its own maze, on every maze of the stage and (when the curator
     has validation mazes) on the validation mazes. Bottom: the
-    :func:`~amaze.curriculum.genome.difficulty` of every branch's maze, the
+    :func:`~amaze.curriculum.difficulty.difficulty` of every branch's maze, the
     selected one's joined by a line, and the target's as a dashed line.
     """
     import matplotlib

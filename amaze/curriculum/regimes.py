@@ -18,7 +18,8 @@
   lineage's earlier mazes (:mod:`amaze.runs.curriculum`);
 * **coevolution**: no stages: a population of mazes co-evolves with the
   agents (:mod:`amaze.curriculum.coevolution`), leading to the target's
-  family; evolution only (``evolution.coevolution``).
+  family; one loop for every trainer (``amaze.runs.coevolution``), each
+  trainer giving its batch step (a generation, an RL rollout).
 
 :func:`branch_allowance` shares a curriculum's budget between its stages and
 branches, and :func:`curriculum_over` says when it is spent.

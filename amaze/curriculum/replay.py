@@ -30,6 +30,11 @@ def rank_weights(scores: Sequence[float] | np.ndarray, temperature: float) -> np
     ``scores`` is flattened first; rank 1 is the highest score, ties ranked
     in the order of the scores (a stable sort). The temperature is an
     exponent: lower is greedier.
+
+    >>> rank_weights([0.2, 0.9, 0.5], temperature=1.0).round(3)  # ranks 3, 1, 2
+    array([0.182, 0.545, 0.273])
+    >>> rank_weights([0.2, 0.9, 0.5], temperature=0.1).round(3)  # greedier
+    array([0.   , 0.999, 0.001])
     """
     values = np.asarray(scores, dtype=np.float64).reshape(-1)
     if values.size == 0:
@@ -48,6 +53,9 @@ def staleness_weights(last_played: Sequence[int] | np.ndarray, now: int) -> np.n
     """PLR's staleness distribution ``(now - last_i) / sum_j (now - last_j)``.
 
     Uniform when every member was played at ``now``.
+
+    >>> staleness_weights([3, 5, 5], now=6)  # ages 3, 1, 1
+    array([0.6, 0.2, 0.2])
     """
     ages = now - np.asarray(last_played, dtype=np.float64).reshape(-1)
     if ages.size == 0:
@@ -68,7 +76,11 @@ def replay_distribution(
     temperature: float,
     staleness: float,
 ) -> np.ndarray:
-    """``(1 - staleness) * rank_weights + staleness * staleness_weights`` over the members."""
+    """``(1 - staleness) * rank_weights + staleness * staleness_weights`` over the members.
+
+    >>> replay_distribution([0.2, 0.9, 0.5], [3, 5, 5], 6, temperature=1.0, staleness=0.1).round(3)
+    array([0.224, 0.511, 0.265])
+    """
     return (1.0 - staleness) * rank_weights(scores, temperature) + staleness * staleness_weights(
         last_played, now
     )

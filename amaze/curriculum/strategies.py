@@ -1,7 +1,7 @@
 """Scripted curators: the paper's human strategies, domain randomisation and interpolation.
 
 Each curator is a set of rules a person could follow by hand, written down
-here and in the README, so that curricula are comparable and replayable.
+here and in ``docs/regimes/edhucat.md``, so that curricula are comparable and replayable.
 
 **Challenges.** The paper's three human strategies (*careful*, *moderate*,
 *risky*) make a maze harder *toward the target* one challenge at a time. A
@@ -57,7 +57,7 @@ new walls, so an agent meets a family rather than one maze.
   target's larger side, at most 100), ``add_lure``, ``add_trap``,
   ``p_lure_up``, ``p_trap_up`` or ``clue_lightness_down`` (fainter clues).
   Select: the best on the hardest maze of the stage (by
-  :func:`~amaze.curriculum.genome.difficulty`; success, then R̄ on its 4
+  :func:`~amaze.curriculum.difficulty.difficulty`; success, then R̄ on its 4
   rotations), the agent that copes best with the harshest conditions; ties
   go to the best overall, then the lower branch.
 * ``interpolation``: the paper's interpolation regime as a curator. Stage
@@ -167,7 +167,7 @@ def hardest_score(candidates: Sequence[Candidate]) -> Callable[[Candidate], tupl
     """Risky's key: success and R̄ on the stage's hardest maze, then :func:`overall_score`.
 
     The hardest maze is the one with the largest
-    :func:`~amaze.curriculum.genome.difficulty` among every maze the candidates
+    :func:`~amaze.curriculum.difficulty.difficulty` among every maze the candidates
     were evaluated on (the first in branch order on ties). A candidate without
     results on it scores as its own mazes.
     """

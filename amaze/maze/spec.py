@@ -162,7 +162,14 @@ class MazeSpec:
 
     @classmethod
     def from_string(cls, text: str, **overrides: object) -> MazeSpec:
-        """Parse a maze string; keyword arguments override the parsed fields."""
+        """Parse a maze string; keyword arguments override the parsed fields.
+
+        >>> spec = MazeSpec.from_string("M4_20x20_C1_l.25_L.25_t.5_T.5")
+        >>> spec.seed, spec.width, spec.p_lure, spec.clue
+        (4, 20, 0.25, (Sign(shape='arrow', value=1.0),))
+        >>> str(MazeSpec.from_string("M4_20x20_C1", width=12))
+        'M4_12x20_C1'
+        """
         if not isinstance(text, str):
             raise MazeStringError(f"a maze string must be a str, not {type(text).__name__}")
         values: dict[str, object] = {}

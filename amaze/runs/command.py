@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import platform
 import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NoReturn
 
+from amaze import __version__
 from amaze.errors import AmazeError, UsageError, one_line
 from amaze.runs.cluster import add_backend_arguments, check_backend
 from amaze.runs.lifecycle import Run, RunResult
@@ -43,10 +45,30 @@ EXIT_USAGE = 2
 
 
 class CommandParser(argparse.ArgumentParser):
-    """argparse whose usage errors raise :class:`~amaze.errors.UsageError` (one line, exit 2)."""
+    """argparse whose usage errors raise :class:`~amaze.errors.UsageError` (one line, exit 2).
+
+    ``version=True`` (a command's top-level parser) adds ``--version``, which
+    prints the command, the package version and the Python and numpy versions
+    (what a bug report or a methods section needs) and exits with status 0.
+    """
+
+    def __init__(self, *args: object, version: bool = False, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        if version:
+            self.add_argument("--version", action="version", version=version_line())
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(f"{self.prog}: {message}")
+
+
+def version_line() -> str:
+    """``%(prog)s <version> (Python x.y.z, numpy x.y.z)``, as ``--version`` prints it."""
+    import numpy
+
+    return (
+        f"%(prog)s {__version__} (amaze-evo; Python {platform.python_version()},"
+        f" numpy {numpy.__version__})"
+    )
 
 
 def run_command(body: Callable[[], int | None]) -> int:
@@ -111,7 +133,7 @@ class TrainingCommand:
 
     def parser(self) -> CommandParser:
         """The command's parser: the config's fields, then the run options."""
-        parser = CommandParser(prog=self.prog, description=self.description)
+        parser = CommandParser(prog=self.prog, description=self.description, version=True)
         config = parser.add_argument_group("run config (config.json keys)")
         self.run_class.config_class.add_arguments(config)
         options = self.run_class.config_class.options_field

@@ -101,6 +101,7 @@ from amaze.curriculum.regimes import (
 )
 from amaze.evaluation.protocol import Evaluator
 from amaze.maze import rotations
+from amaze.runs.anytime import Spent
 from amaze.runs.branches import (
     BRANCH_FILE,
     FINAL_FOLDER,
@@ -165,6 +166,8 @@ class CurriculumRun(CurriculumSummary, Run):
         #: The loop's decisions: recorded (a resume), replayed, or asked of the curator.
         self.decided = Decisions(DecisionLog(self.out / DECISIONS_FILE), config)
         self.records: list[StageRecord] = []
+        #: The finished branches of the stage in progress.
+        self.current: list[Candidate] = []
         self.final: Candidate | None = None
         #: The final agent trained on its lineage's mazes (``final_training``), if it was.
         self.finishing: Candidate | None = None
@@ -174,6 +177,8 @@ class CurriculumRun(CurriculumSummary, Run):
         self.shown: Progress | None = None
         #: The curator's validation mazes and their evaluator, if it has any.
         self.validation: tuple[Evaluator, list[str]] | None = None
+        #: The branch folder whose agent was loaded last, and that agent.
+        self._loaded: tuple[Path | None, Any] = (None, None)
 
     # -- the trainer's part ---------------------------------------------------
 
@@ -310,6 +315,7 @@ class CurriculumRun(CurriculumSummary, Run):
             stage = 0
             while not self._over(stage):
                 self.records.append(self._stage(stage))
+                self.current = []
                 stage += 1
             self.final = self._select(stage)
             self._final_training(self.final)
@@ -328,7 +334,7 @@ class CurriculumRun(CurriculumSummary, Run):
         allowance = self._allowance(stage)
         evaluator = Evaluator(c.robot, rotations(mazes), inputs=False)
         lineage = self._lineage_mazes()
-        candidates: list[Candidate] = []
+        candidates = self.current = []
         for branch in range(len(mazes)):
             own = mazes[branch]
             rehearsed = [maze for maze in lineage if maze != own][: c.rehearsal]
@@ -338,6 +344,7 @@ class CurriculumRun(CurriculumSummary, Run):
                 stage, branch, mazes, training, parent, allowance, evaluator, steps_before
             )
             candidates.append(candidate)
+            self.evaluate_anytime()
         return StageRecord(stage, tuple(mazes), tuple(candidates))
 
     def _allowance(self, stage: int) -> tuple[int | None, float | None]:
@@ -357,7 +364,37 @@ class CurriculumRun(CurriculumSummary, Run):
 
     def final_agent(self) -> Any:
         assert self.final is not None
-        return self.load_learner(self._final_folder() / "agent").agent()
+        return self._agent_in(self._final_folder())
+
+    def spent(self) -> Spent:
+        """Finished branches (the final training counts as one), their steps and seconds."""
+        finished = sum(len(record.candidates) for record in self.records) + len(self.current)
+        return Spent(
+            finished + (self.finishing is not None),
+            self._steps(self.current),
+            self._seconds(self.current),
+        )
+
+    def current_agent(self) -> Any:
+        """The final training's agent, else the final choice, else the latest selection.
+
+        Before the first selection (stage 0), the newest finished branch: the
+        only agents there are.
+        """
+        if self.final is not None:
+            return self.final_agent()
+        selected = [r for r in self.records if r.selected is not None]
+        if selected:
+            record = selected[-1]
+            assert record.selected is not None
+            return self._agent_in(self._branch_folder(record.candidates[record.selected]))
+        return self._agent_in(self._branch_folder(self.current[-1]))
+
+    def _agent_in(self, folder: Path) -> Any:
+        """The agent saved in a branch ``folder`` (the last one loaded is kept)."""
+        if self._loaded[0] != folder:
+            self._loaded = (folder, self.load_learner(folder / "agent").agent())
+        return self._loaded[1]
 
     def _final_folder(self) -> Path:
         """The folder of the agent the run hands over: its final training's or final choice's."""
@@ -455,6 +492,7 @@ class CurriculumRun(CurriculumSummary, Run):
             len(self.records), 0, [own], training, final, (left_steps, left_seconds),
             evaluator, self._steps(), folder=self.out / FINAL_FOLDER,
         )  # fmt: skip
+        self.evaluate_anytime()
 
     def _branch(
         self,

@@ -57,6 +57,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any, ClassVar
 
+from amaze.runs.anytime import AnytimeEvaluations, Spent
 from amaze.runs.config import RunConfig, read_json_object
 from amaze.runs.folder import ProgressLog, write_json
 
@@ -173,6 +174,8 @@ class Run(ABC):
             self.out / "progress.csv", self.progress_fields, self.progress_text_fields
         )
         self.checkpoints = self.out / "checkpoints"
+        #: The anytime evaluations (:mod:`amaze.runs.anytime`, ``evaluations.csv``).
+        self.anytime = AnytimeEvaluations(self.out, config)
 
     # -- the trainer's part ---------------------------------------------------
 
@@ -204,6 +207,26 @@ class Run(ABC):
     @abstractmethod
     def save_agent(self, agent: Any, path: Path) -> None:
         """Write the final agent (from :meth:`final_agent`) to ``path``, an agent file."""
+
+    @abstractmethod
+    def spent(self) -> Spent:
+        """How far training is now: ``progress.csv`` position, env steps, training seconds."""
+
+    def current_agent(self) -> Any:
+        """The agent the run would hand over if it stopped now (for the anytime evaluations).
+
+        :meth:`final_agent` by default; a trainer whose final choice is made
+        only at the end (a curriculum) says what it would be now.
+        """
+        return self.final_agent()
+
+    def evaluate_anytime(self) -> float:
+        """Play the anytime evaluations due now; return their seconds (0 when none was).
+
+        A trainer's loop calls it after each unit of training, outside the
+        time its budget counts (or takes the seconds returned off its clock).
+        """
+        return self.anytime.take(self.spent(), self.current_agent)
 
     @abstractmethod
     def agent_figures(self) -> dict[str, Any]:
@@ -322,9 +345,12 @@ class Run(ABC):
         error = run.config.error
         if (path / SUMMARY_FILE).exists():
             return run.finished_result()
+        if "evaluation_points" not in read_json_object(path / CONFIG_FILE, error, "run config"):
+            run.anytime.points = 0  # a run started before anytime evaluations: none now either
         # Every file is checked before anything in the folder changes.
         rows = run.progress.checked_rows(cls.position_field, error)
         position = run.restore()
+        evaluations = run.anytime.check()
         if position is None:
             if len(rows) > 1:  # more than a run killed before its first checkpoint writes
                 files = " and ".join(repr(str(run.checkpoints / f)) for f in cls.checkpoint_files)
@@ -334,6 +360,7 @@ class Run(ABC):
                 )
             run.start()
             run.progress.keep(lambda row: False)
+            run.anytime.restore(None, evaluations)
         else:
             if not any(int(row[cls.position_field]) == position for row in rows):
                 raise error(
@@ -341,6 +368,7 @@ class Run(ABC):
                     " where the checkpoint is"
                 )
             run.progress.keep(lambda row: int(row[cls.position_field]) <= position)
+            run.anytime.restore(position, evaluations)
         with frozen_heap():
             run.train(progress)
         return run.finish()
@@ -426,10 +454,12 @@ class Run(ABC):
 
         agent = self.final_agent()
         self.save_agent(agent, self.out / self.agent_file)
+        self.anytime.finish(self.spent(), agent)
         robot = self.config.robot
         summary = Evaluator(robot).evaluate(agent).summary()
         summary.update(self.figures())
         summary.update(self.agent_figures(), agent=self.agent_file)
+        summary["anytime"] = self.anytime.figures()
         summary.update(self._budget_figures(summary))
         for stem, maze in self.trajectory_mazes():
             _, trajectory = record_episode(maze, robot, agent)

@@ -30,6 +30,7 @@ from amaze.curriculum.regimes import (
 )
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.maze.spec import MazeSpec
+from amaze.runs.anytime import DEFAULT_FAMILY, DEFAULT_POINTS
 from amaze.runs.config import RunConfig, option
 from amaze.validation import check_integer
 
@@ -45,6 +46,9 @@ DEFAULT_CURATOR = {"edhucat": "careful", "interpolation": "interpolation", "eden
 DEFAULT_REHEARSAL = {"edhucat": 0, "interpolation": 0, "edens": 7}
 #: Most rehearsed mazes.
 MAX_REHEARSAL = 64
+#: Most anytime evaluations of a run, and most family mazes in their set.
+MAX_POINTS = 1000
+MAX_FAMILY = 1000
 
 
 @dataclass
@@ -157,6 +161,18 @@ class RegimeConfig(RunConfig):
         command_line=False,
         regimes=("coevolution",),
     )
+    evaluation_points: int = option(
+        DEFAULT_POINTS,
+        "anytime evaluations: the agent the run would hand over, played on the evaluation"
+        " set at N evenly spaced fractions of the budget (evaluations.csv); 0: none",
+        metavar="N",
+    )
+    evaluation_family: int = option(
+        DEFAULT_FAMILY,
+        "family mazes (new seeds) in the evaluation set of the anytime evaluations,"
+        " besides the training mazes; 4 rotations each",
+        metavar="N",
+    )
 
     @property
     def is_curriculum(self) -> bool:
@@ -177,6 +193,14 @@ class RegimeConfig(RunConfig):
                 f"regime {self.regime!r} {known} (choose from {', '.join(self.supported_regimes)})"
             )
         self.refuse_options_without_effect(self.regime)  # before anything is normalised
+        self.evaluation_points = check_integer(
+            "evaluation_points", self.evaluation_points, minimum=0, maximum=MAX_POINTS,
+            error=self.error,
+        )  # fmt: skip
+        self.evaluation_family = check_integer(
+            "evaluation_family", self.evaluation_family, minimum=0, maximum=MAX_FAMILY,
+            error=self.error,
+        )  # fmt: skip
         if self.regime != "direct":
             self.target = self._maze("target", self.target)
         self.mazes = self._maze_list("mazes", self.mazes)
@@ -281,8 +305,27 @@ class RegimeConfig(RunConfig):
             data.setdefault("budget_steps", None)
         return data
 
+    def coevolution_defaults(self) -> dict[str, Any]:
+        """The maze population options this trainer fills in when the config leaves them out.
+
+        None here: :class:`~amaze.curriculum.coevolution.MazePopulationConfig`'s
+        own defaults apply. A trainer whose batch follows from its own options
+        (RL: one environment per rotation of each batch maze) gives them.
+        """
+        return {}
+
+    def check_coevolution_options(self, options: MazePopulationConfig) -> None:
+        """Refuse population ``options`` this trainer cannot run (any, here)."""
+
     def _check_coevolution(self) -> None:
-        """``coevolution`` is a valid maze population config, and only in that regime."""
+        """The co-evolution config, checked here alone: ``coevolution`` and the trainer's fit.
+
+        ``coevolution`` is a JSON object, set in that regime only; the
+        trainer's defaults (:meth:`coevolution_defaults`) fill what it leaves
+        out (``config.json`` then records them); the whole is a valid
+        :class:`~amaze.curriculum.coevolution.MazePopulationConfig`, which
+        the trainer's options must fit (:meth:`check_coevolution_options`).
+        """
         if not isinstance(self.coevolution, dict):
             raise self.error(f"coevolution {self.coevolution!r} is not a JSON object")
         if self.regime != "coevolution":
@@ -292,10 +335,13 @@ class RegimeConfig(RunConfig):
                     f" not {self.regime}"
                 )
             return
+        options = {**self.coevolution_defaults(), **self.coevolution}
         try:
-            MazePopulationConfig.from_dict(self.coevolution)
+            checked = MazePopulationConfig.from_dict(options)
         except CoevolutionError as problem:
             raise self.error(str(problem)) from None
+        self.check_coevolution_options(checked)
+        self.coevolution = options
 
     def curator_context(self) -> CuratorContext:
         """What the curator is built from."""

@@ -113,12 +113,43 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
     """
     n_inputs, n_outputs = int(genome.n_inputs), int(genome.n_outputs)
     output_ids = [n_inputs + o for o in range(n_outputs)]
+    incoming = _enabled_incoming(genome)
+    required = _required_nodes(incoming, output_ids, n_inputs)
+    order = _topological_order(required, incoming, n_inputs)
+    arrays = _evaluator_arrays(genome, order, incoming, output_ids)
+    architecture = {
+        "type": "neat",
+        "n_inputs": n_inputs,
+        "n_outputs": n_outputs,
+        "activations": list(ACTIVATIONS),
+        "n_nodes": len(order),
+        "n_connections": len(arrays["sources"]),
+    }
+    return arrays, architecture
+
+
+def _enabled_incoming(genome: Any) -> dict[int, list[Any]]:
+    """Each node's enabled incoming connection genes, by innovation number.
+
+    Disabled connections do not change what the network computes: they are
+    left out here, so that every later step sees the evaluated graph only.
+    """
     incoming: dict[int, list[Any]] = {}
     for innovation in sorted(genome.connections):
         gene = genome.connections[innovation]
         if gene.enabled:
             incoming.setdefault(gene.out_node, []).append(gene)
-    # nodes that reach an output (walking enabled connections backwards)
+    return incoming
+
+
+def _required_nodes(
+    incoming: Mapping[int, list[Any]], output_ids: list[int], n_inputs: int
+) -> set[int]:
+    """The non-input nodes that reach an output (walking enabled connections backwards).
+
+    The outputs themselves are included; a hidden node from which no output
+    can be reached does not change the outputs and is not evaluated.
+    """
     required = set(output_ids)
     stack = list(output_ids)
     while stack:
@@ -128,7 +159,18 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
             if source >= n_inputs and source not in required:
                 required.add(source)
                 stack.append(source)
-    # Kahn's topological order among the required nodes, smallest id first
+    return required
+
+
+def _topological_order(
+    required: set[int], incoming: Mapping[int, list[Any]], n_inputs: int
+) -> list[int]:
+    """Kahn's topological order among the required nodes, smallest ready id first.
+
+    The order is the evaluation order (every node after its sources), the same
+    one for equal genomes; a cycle of enabled connections has no such order and
+    raises :class:`ValueError`.
+    """
     pending = {node: 0 for node in required}
     children: dict[int, list[int]] = {}
     for node in required:
@@ -148,6 +190,18 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
                 heappush(ready, child)
     if len(order) != len(required):
         raise ValueError("the genome's enabled connections form a cycle")
+    return order
+
+
+def _evaluator_arrays(
+    genome: Any, order: list[int], incoming: Mapping[int, list[Any]], output_ids: list[int]
+) -> dict[str, np.ndarray]:
+    """The arrays of :func:`genome_to_arrays`: nodes in ``order``, incoming connections as CSR.
+
+    A connection's source becomes an input index (below ``n_inputs``) or
+    ``n_inputs`` + the evaluated-node index of its source node.
+    """
+    n_inputs = int(genome.n_inputs)
     index = {node: j for j, node in enumerate(order)}
     bias = np.empty(len(order), dtype=np.float64)
     activation = np.empty(len(order), dtype=np.int64)
@@ -163,7 +217,7 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
             sources.append(source if source < n_inputs else n_inputs + index[source])
             weights.append(connection.weight)
         indptr[j + 1] = len(sources)
-    arrays = {
+    return {
         "node_ids": np.asarray(order, dtype=np.int64),
         "bias": bias,
         "activation": activation,
@@ -172,15 +226,6 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
         "weights": np.asarray(weights, dtype=np.float64),
         "outputs": np.asarray([index[node] for node in output_ids], dtype=np.int64),
     }
-    architecture = {
-        "type": "neat",
-        "n_inputs": n_inputs,
-        "n_outputs": n_outputs,
-        "activations": list(ACTIVATIONS),
-        "n_nodes": len(order),
-        "n_connections": len(sources),
-    }
-    return arrays, architecture
 
 
 def genomes_to_arrays(genomes: Sequence[Any]) -> list[dict[str, np.ndarray]]:
@@ -239,6 +284,141 @@ def _offsets(sizes: list[int]) -> np.ndarray:
     return offsets
 
 
+@numba.njit(cache=True, inline="always")
+def _node_index(by_id, sorted_ids, node_id):
+    """The index in the genome's node list of node ``node_id`` (``sorted_ids = ids[by_id]``)."""
+    return by_id[np.searchsorted(sorted_ids, node_id)]
+
+
+@numba.njit(cache=True)
+def _incoming_csr(innovation, target, by_id, sorted_ids):
+    """CSR adjacency of one genome: its enabled connections grouped by target node.
+
+    ``innovation`` and ``target`` are the genome's enabled connections (their
+    innovation numbers and target node ids), ``by_id`` sorts the genome's node
+    ids into ``sorted_ids``. Node ``t``'s incoming connections (indices into
+    ``target``) are ``incoming[incoming_ptr[t]:incoming_ptr[t + 1]]``, by
+    innovation: the order in which :func:`genome_to_arrays` lists them.
+    """
+    m = by_id.shape[0]
+    n_edges = target.shape[0]
+    edges = np.argsort(innovation, kind="mergesort")
+    incoming_ptr = np.zeros(m + 1, dtype=np.int64)
+    targets = np.empty(n_edges, dtype=np.int64)
+    for k in range(n_edges):
+        t = _node_index(by_id, sorted_ids, target[edges[k]])
+        targets[k] = t
+        incoming_ptr[t + 1] += 1
+    for t in range(m):
+        incoming_ptr[t + 1] += incoming_ptr[t]
+    fill = incoming_ptr[:-1].copy()
+    incoming = np.empty(n_edges, dtype=np.int64)
+    for k in range(n_edges):
+        incoming[fill[targets[k]]] = edges[k]
+        fill[targets[k]] += 1
+    return incoming_ptr, incoming
+
+
+@numba.njit(cache=True)
+def _reachability(n_inputs, n_outputs, incoming_ptr, incoming, source, by_id, sorted_ids):
+    """The nodes of one genome that reach an output, walking enabled connections backwards.
+
+    Returns ``required`` (bool per node: an output, or a hidden node with a
+    path to one) and ``local`` (per connection, the node index of its source
+    when that source is a node reached by the walk; -1 for an input or a
+    connection that the walk does not take). Only required nodes are evaluated.
+    """
+    m = by_id.shape[0]
+    local = np.full(source.shape[0], -1, dtype=np.int64)
+    required = np.zeros(m, dtype=np.bool_)
+    stack = np.empty(m, dtype=np.int64)
+    top = 0
+    for o in range(n_outputs):
+        t = _node_index(by_id, sorted_ids, n_inputs + o)
+        required[t] = True
+        stack[top] = t
+        top += 1
+    while top:
+        top -= 1
+        t = stack[top]
+        for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+            src = source[incoming[k]]
+            if src >= n_inputs:
+                u = _node_index(by_id, sorted_ids, src)
+                local[incoming[k]] = u
+                if not required[u]:
+                    required[u] = True
+                    stack[top] = u
+                    top += 1
+    return required, local
+
+
+@numba.njit(cache=True)
+def _kahn_order(n_inputs, required, incoming_ptr, incoming, source, local, by_id):
+    """Kahn's topological order among the required nodes, smallest ready id first.
+
+    Returns ``ok`` (False: the required nodes' enabled connections form a
+    cycle), ``order`` (the node indices in evaluation order) and ``position``
+    (each node's place in ``order``, -1 for a node left out).
+    """
+    m = by_id.shape[0]
+    pending = np.zeros(m, dtype=np.int64)
+    n_required = 0
+    for t in range(m):
+        if required[t]:
+            n_required += 1
+            for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+                if source[incoming[k]] >= n_inputs:
+                    pending[t] += 1
+    position = np.full(m, -1, dtype=np.int64)
+    order = np.empty(n_required, dtype=np.int64)
+    done = 0
+    while done < n_required:
+        best = -1
+        for r in range(m):  # the ready node of smallest id (ids sorted by by_id)
+            t = by_id[r]
+            if required[t] and position[t] < 0 and pending[t] == 0:
+                best = t
+                break
+        if best < 0:
+            return False, order, position
+        position[best] = done
+        order[done] = best
+        done += 1
+        for t in range(m):
+            if required[t] and position[t] < 0:
+                for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+                    if local[incoming[k]] == best:
+                        pending[t] -= 1
+    return True, order, position
+
+
+@numba.njit(cache=True)
+def _connection_lists(
+    n_inputs, order, position, local, incoming_ptr, incoming, source, weight, indptr_out,
+    sources_out, weights_out,
+):  # fmt: skip
+    """Write one genome's evaluated connections as CSR lists, in evaluation order.
+
+    Node ``order[j]``'s incoming connections (by innovation) fill
+    ``sources_out`` and ``weights_out`` from ``indptr_out[j]`` on
+    (``indptr_out[0]`` is not written: the caller's buffer holds 0 there); a
+    source is an input index, or ``n_inputs`` + the position of its node in
+    ``order``. Returns the number of connections written.
+    """
+    e = 0
+    for j in range(order.shape[0]):
+        t = order[j]
+        for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
+            c = incoming[k]
+            src = source[c]
+            sources_out[e] = src if src < n_inputs else n_inputs + position[local[c]]
+            weights_out[e] = weight[c]
+            e += 1
+        indptr_out[j + 1] = e
+    return e
+
+
 @numba.njit(cache=True)
 def _compile_kernel(
     n_inputs, n_outputs, node_ptr, node_ids, bias, codes, edge_ptr, innovation, source, target,
@@ -263,101 +443,36 @@ def _compile_kernel(
     outputs_all = np.empty((n_genomes, n_outputs), dtype=np.int64)
     n_out = e_out = 0
     for g in range(n_genomes):
-        ids = node_ids[node_ptr[g] : node_ptr[g + 1]]
+        n0, n1, e0, e1 = node_ptr[g], node_ptr[g + 1], edge_ptr[g], edge_ptr[g + 1]
+        ids = node_ids[n0:n1]
         by_id = np.argsort(ids)
         sorted_ids = ids[by_id]
-        m = ids.shape[0]
-        # this genome's enabled connections by innovation, grouped by target (CSR)
-        e0, e1 = edge_ptr[g], edge_ptr[g + 1]
-        edges = e0 + np.argsort(innovation[e0:e1], kind="mergesort")
-        incoming_ptr = np.zeros(m + 1, dtype=np.int64)
-        targets = np.empty(e1 - e0, dtype=np.int64)
-        for k in range(e1 - e0):
-            t = by_id[np.searchsorted(sorted_ids, target[edges[k]])]
-            targets[k] = t
-            incoming_ptr[t + 1] += 1
-        for t in range(m):
-            incoming_ptr[t + 1] += incoming_ptr[t]
-        fill = incoming_ptr[:-1].copy()
-        incoming = np.empty(e1 - e0, dtype=np.int64)
-        for k in range(e1 - e0):
-            incoming[fill[targets[k]]] = edges[k]
-            fill[targets[k]] += 1
-        # nodes that reach an output (walking enabled connections backwards)
-        local = np.full(e1 - e0, -1, dtype=np.int64)  # connection -> its source's node index
-        required = np.zeros(m, dtype=np.bool_)
-        stack = np.empty(m, dtype=np.int64)
-        top = 0
+        incoming_ptr, incoming = _incoming_csr(innovation[e0:e1], target[e0:e1], by_id, sorted_ids)
+        required, local = _reachability(
+            n_inputs, n_outputs, incoming_ptr, incoming, source[e0:e1], by_id, sorted_ids
+        )
+        ok, order, position = _kahn_order(
+            n_inputs, required, incoming_ptr, incoming, source[e0:e1], local, by_id
+        )
+        if not ok:
+            return (
+                False, sizes, counts, order_all, bias_all, act_all, indptr_all,
+                sources_all, weights_all, outputs_all,
+            )  # fmt: skip
+        n = order.shape[0]
+        for j in range(n):
+            order_all[n_out + j] = ids[order[j]]
+            bias_all[n_out + j] = bias[n0 + order[j]]
+            act_all[n_out + j] = codes[n0 + order[j]]
+        counts[g] = _connection_lists(
+            n_inputs, order, position, local, incoming_ptr, incoming, source[e0:e1],
+            weight[e0:e1], indptr_all[n_out + g :], sources_all[e_out:], weights_all[e_out:],
+        )  # fmt: skip
         for o in range(n_outputs):
-            t = by_id[np.searchsorted(sorted_ids, n_inputs + o)]
-            required[t] = True
-            stack[top] = t
-            top += 1
-        while top:
-            top -= 1
-            t = stack[top]
-            for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
-                src = source[incoming[k]]
-                if src >= n_inputs:
-                    u = by_id[np.searchsorted(sorted_ids, src)]
-                    local[incoming[k] - e0] = u
-                    if not required[u]:
-                        required[u] = True
-                        stack[top] = u
-                        top += 1
-        # Kahn's topological order among the required nodes, smallest id first
-        pending = np.zeros(m, dtype=np.int64)
-        n_required = 0
-        for t in range(m):
-            if required[t]:
-                n_required += 1
-                for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
-                    if source[incoming[k]] >= n_inputs:
-                        pending[t] += 1
-        position = np.full(m, -1, dtype=np.int64)
-        order = np.empty(n_required, dtype=np.int64)
-        done = 0
-        while done < n_required:
-            best = -1
-            for r in range(m):  # the ready node of smallest id (ids sorted by by_id)
-                t = by_id[r]
-                if required[t] and position[t] < 0 and pending[t] == 0:
-                    best = t
-                    break
-            if best < 0:
-                return (
-                    False, sizes, counts, order_all, bias_all, act_all, indptr_all,
-                    sources_all, weights_all, outputs_all,
-                )  # fmt: skip
-            position[best] = done
-            order[done] = best
-            done += 1
-            for t in range(m):
-                if required[t] and position[t] < 0:
-                    for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
-                        if local[incoming[k] - e0] == best:
-                            pending[t] -= 1
-        # the arrays
-        base = n_out + g
-        e_start = e_out
-        for j in range(n_required):
-            t = order[j]
-            order_all[n_out + j] = ids[t]
-            bias_all[n_out + j] = bias[node_ptr[g] + t]
-            act_all[n_out + j] = codes[node_ptr[g] + t]
-            for k in range(incoming_ptr[t], incoming_ptr[t + 1]):
-                e = incoming[k]
-                src = source[e]
-                sources_all[e_out] = src if src < n_inputs else n_inputs + position[local[e - e0]]
-                weights_all[e_out] = weight[e]
-                e_out += 1
-            indptr_all[base + j + 1] = e_out - e_start
-        for o in range(n_outputs):
-            t = by_id[np.searchsorted(sorted_ids, n_inputs + o)]
-            outputs_all[g, o] = position[t]
-        sizes[g] = n_required
-        counts[g] = e_out - e_start
-        n_out += n_required
+            outputs_all[g, o] = position[_node_index(by_id, sorted_ids, n_inputs + o)]
+        sizes[g] = n
+        n_out += n
+        e_out += counts[g]
     return (
         True, sizes, counts, order_all, bias_all, act_all, indptr_all, sources_all, weights_all,
         outputs_all,

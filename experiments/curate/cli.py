@@ -45,6 +45,7 @@ DEFAULT_PORT = 8765
 
 def parser() -> CommandParser:
     p = CommandParser(
+        version=True,
         prog="amaze-curate",
         description="Curate a curriculum in your browser: an EDHuCAT run whose curator is you.",
     )

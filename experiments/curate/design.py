@@ -179,7 +179,7 @@ def maze_card(text: str, reference: str | None = None) -> dict[str, Any]:
 
     ``reference`` is the maze the agent trained on last (the parent's): the
     card says how this maze differs from it and by how much its difficulty
-    (:func:`~amaze.curriculum.genome.difficulty_profile`'s score) changes.
+    (:func:`~amaze.curriculum.difficulty.difficulty_profile`'s score) changes.
     """
     spec, notes = parse_maze(text)
     maze = Maze.generate(spec)

@@ -226,8 +226,23 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
     templates = Jinja2Templates(directory=str(HERE / "templates"))
     pictures = _Pictures()
     seeds = np.random.default_rng(np.random.SeedSequence([session.description["seed"], 0x5EED]))
-    seeds_lock = threading.Lock()
     run_folder = session.out.resolve()
+    _add_guard(app, token, csrf)
+    _add_error_handlers(app)
+    _add_page_routes(app, session, templates, csrf)
+    _add_maze_routes(app, pictures, seeds)
+    _add_run_routes(app, session, pictures, run_folder)
+    app.mount("/static", StaticFiles(directory=str(HERE / "static")), name="static")
+    return app
+
+
+def _add_guard(app: FastAPI, token: str, csrf: str) -> None:
+    """The middleware that checks every request: token, method, and a post's CSRF token and body.
+
+    A request carrying the token in its query is redirected to the same path
+    without it, with the token set in an HTTP-only, same-site cookie; anything
+    without the token gets 403 before any route runs.
+    """
 
     @app.middleware("http")
     async def guard(request: Request, call_next: Callable[[Request], Awaitable[Response]]):
@@ -254,6 +269,10 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
                 return _problem(415, "a post's body must be JSON")
         return await call_next(request)
 
+
+def _add_error_handlers(app: FastAPI) -> None:
+    """Answer every known problem with a 4xx naming it (``{"error": ...}``), never a 500."""
+
     @app.exception_handler(AnswerError)
     async def answer_error(request: Request, problem: AnswerError) -> JSONResponse:
         return _problem(problem.status, str(problem), problem.details)
@@ -272,14 +291,25 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
     async def http_error(request: Request, problem: StarletteHTTPException) -> JSONResponse:
         return _problem(problem.status_code, str(problem.detail))
 
-    async def json_body(request: Request) -> dict[str, Any]:
-        body = await request.body()
-        if len(body) > MAX_BODY:  # the guard checked the header; this is what came
-            raise AnswerError(f"a request body of at most {MAX_BODY} bytes", status=413)
-        data = parse_json(body, "the request body", error=AnswerError)
-        if not isinstance(data, dict):
-            raise AnswerError("the request body is not a JSON object")
-        return data
+
+async def _json_body(request: Request) -> dict[str, Any]:
+    """A post's body: a JSON object of at most :data:`MAX_BODY` bytes, else an :class:`AnswerError`.
+
+    The guard checked the ``Content-Length`` header; this checks what came.
+    """
+    body = await request.body()
+    if len(body) > MAX_BODY:  # the guard checked the header; this is what came
+        raise AnswerError(f"a request body of at most {MAX_BODY} bytes", status=413)
+    data = parse_json(body, "the request body", error=AnswerError)
+    if not isinstance(data, dict):
+        raise AnswerError("the request body is not a JSON object")
+    return data
+
+
+def _add_page_routes(
+    app: FastAPI, session: CurationSession, templates: Jinja2Templates, csrf: str
+) -> None:
+    """``GET /``: the page (with its CSRF token); ``GET /api/state``: the session's state."""
 
     @app.get("/")
     def page(request: Request) -> Response:
@@ -289,9 +319,18 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
     def state() -> dict[str, Any]:
         return session.state()
 
+
+def _add_maze_routes(app: FastAPI, pictures: _Pictures, seeds: np.random.Generator) -> None:
+    """``POST /api/maze``: a maze card; ``GET /api/maze.png``: a maze's preview.
+
+    New seeds are drawn from ``seeds`` (a generator seeded by the session's
+    seed), one request at a time.
+    """
+    seeds_lock = threading.Lock()
+
     @app.post("/api/maze")
     async def maze(request: Request) -> dict[str, Any]:
-        data = await json_body(request)
+        data = await _json_body(request)
         reference = data.get("reference")
         if reference is not None and not isinstance(reference, str):
             raise DesignError(f"reference {reference!r} is not a maze string")
@@ -313,9 +352,15 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
         canonical = parse_maze(string)[0].to_string()
         return Response(pictures.preview(canonical), media_type="image/png")
 
+
+def _add_run_routes(
+    app: FastAPI, session: CurationSession, pictures: _Pictures, run_folder: Path
+) -> None:
+    """The routes of the run: the person's answers, episodes, the curriculum and its files."""
+
     @app.post("/api/answer")
     async def answer(request: Request) -> dict[str, Any]:
-        data = await json_body(request)
+        data = await _json_body(request)
         session.answer(data.get("question"), data.get("answer"))
         return {"ok": True}
 
@@ -336,6 +381,3 @@ def create_app(session: CurationSession, token: str, csrf: str | None = None) ->
     @app.get("/files/{path:path}")
     def files(path: str) -> Response:
         return FileResponse(_run_file(run_folder, path))
-
-    app.mount("/static", StaticFiles(directory=str(HERE / "static")), name="static")
-    return app

@@ -17,8 +17,10 @@ import pytest
 from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
 from amaze.curriculum.validation import reserved_seeds
 from amaze.maze.spec import MazeSpec
+from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, read_agent
+from evolution.checkpoint import evolution_codec
 from evolution.cli import main
 from evolution.cmaes import CMAESConfig
 from evolution.coevolution import EvolutionCoevolutionRun
@@ -190,3 +192,31 @@ def test_coevolution_fills_the_cmaes_options_it_is_not_given() -> None:
     assert neat == NeatConfig().to_dict()  # NEAT's own defaults, recorded
     direct = EvolveConfig.from_dict({}).algorithm  # the direct regime keeps CMA-ES's defaults
     assert direct == CMAESConfig().to_dict() and direct["network"]["hidden"] == []
+
+
+def test_a_checkpoint_of_the_older_layout_resumes_bit_identically(tmp_path: Path) -> None:
+    """A version 1 state (``generation``, ``champion_generation``) is read and goes on."""
+    whole, part = tmp_path / "whole", tmp_path / "part"
+    config = _write_config(tmp_path, max_generations=6)
+    assert main(["--config", str(config), "--out", str(whole), "--no-progress"]) == 0
+    config = _write_config(tmp_path, max_generations=3)
+    assert main(["--config", str(config), "--out", str(part), "--no-progress"]) == 0
+    path, state_class = part / "checkpoints" / "state.npz", EvolutionCoevolutionRun.state_class
+    codec = evolution_codec(state_class)
+    state = read_checkpoint(path, codec, EvolutionConfigError, state_class)
+    attributes = state.__dict__  # as version 1 named them
+    attributes["generation"] = attributes.pop("round")
+    attributes["champion_generation"] = attributes.pop("champion_round")
+    attributes["version"] = 1
+    del attributes["champion_steps"]
+    write_checkpoint(path, state, codec)
+    (part / "summary.json").unlink()
+    stored = json.loads((part / "config.json").read_text())
+    (part / "config.json").write_text(json.dumps({**stored, "max_generations": 6}))
+    assert main(["--resume", str(part), "--no-progress"]) == 0
+    ours, theirs = read_agent(part / "agent.npz"), read_agent(whole / "agent.npz")
+    assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in theirs[0])
+    assert _progress(part) == _progress(whole) and _mazes_csv(part) == _mazes_csv(whole)
+    a, b = (json.loads((o / "summary.json").read_text()) for o in (part, whole))
+    for key in ("generations", "champion_generation", "agent_generation", "agent_steps"):
+        assert a[key] == b[key], key

@@ -13,7 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from amaze.runs.anytime import EVALUATION_FIELDS
 from amaze.runs.checkpoint import read_checkpoint
+from amaze.runs.folder import ProgressLog
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, read_agent
 from evolution.checkpoint import evolution_codec
@@ -44,7 +46,18 @@ def _rows(out: Path) -> list[dict[str, str]]:
 
 
 def _without_time(rows: list[dict[str, str]]) -> list[dict[str, str]]:
-    return [{k: v for k, v in r.items() if k not in ("seconds", "eval_seconds")} for r in rows]
+    timing = (
+        "seconds",
+        "eval_seconds",
+        "training_seconds",
+        "elapsed_seconds",
+        "evaluation_seconds",
+    )
+    return [{k: v for k, v in r.items() if k not in timing} for r in rows]
+
+
+def _evaluations(out: Path) -> list[dict[str, str]]:
+    return ProgressLog(out / "evaluations.csv", EVALUATION_FIELDS).rows()
 
 
 @pytest.mark.parametrize("algo", ["cmaes", "neat"])
@@ -162,11 +175,15 @@ def test_resume_after_a_kill_reaches_the_same_champion(tmp_path: Path, algo: str
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    _kill_when(process, out, generations=3)
+    _kill_when(process, out, generations=15)  # past two anytime points (every 6 generations)
     assert not (out / "summary.json").exists()
     resumed = resume(out)
 
     assert _without_time(_rows(out)) == _without_time(_rows(tmp_path / "whole"))
+    # the anytime evaluations too: the same points, the same agents, the same scores
+    evaluations = _without_time(_evaluations(out))
+    assert len(evaluations) == 20
+    assert evaluations == _without_time(_evaluations(tmp_path / "whole"))
     assert (
         resumed.summary["champion_fitness"] == whole.summary["champion_fitness"]
         and resumed.env_steps == whole.env_steps

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from amaze.runs.folder import write_json
-from experiments.figures import learning_curve
 from experiments.report import collect_rows, table3, write_report
 from experiments.runner import STATE_FILE, STUDY_FILE, StudyFolder
 from experiments.study import parse_study
@@ -105,7 +104,7 @@ def test_table3_holds_the_maximum_and_median_of_each_cell(study_folder: Path) ->
     assert success_max == "| Maximum | Success rate | 0.3 | **0.9** | 0.1 | *0.7* |"
     rbar_median = next(line for line in lines if line.startswith("| Median | Normalized"))
     assert rbar_median == "| Median | Normalized reward R̄ | -4 | *-2* | -6 | **-1** |"
-    assert lines[-1] == "| | runs | 3 | 3 | 3 | 3 |"
+    assert lines[-1] == "| | n (runs) | 3 | 3 | 3 | 3 |"
 
 
 def test_the_tests_are_recomputed_and_corrected_per_metric(study_folder: Path) -> None:
@@ -141,49 +140,25 @@ def test_the_report_shows_the_table_the_paper_the_figures_and_the_compute(
         "| Maximum | Success rate | 0.3 / 0.347 | 0.9 / 0.778 | 0.1 / 0.403 | 0.7 / 0.708 |"
         in report
     )
-    for figure in ("distributions", "inputs", "curves"):
+    for figure in ("distributions", "inputs"):
         assert f"(figures/{figure}.png)" in report
         assert (study_folder / "figures" / f"{figure}.png").stat().st_size > 1000
+    # no evaluations.csv (runs from before anytime evaluations): no curves, and said so
+    assert "curves.png" not in report and "(figures/curves-" not in report
+    assert "No run of these treatments has evaluations to draw." in report
     # median steps and training seconds; wall-clock 20 + 21 + 22 s on 2 threads each
     assert "| direct/a2c/steps | 3 | 100,001 | 20.0 | 63 | 126 |" in report
 
 
-@pytest.mark.parametrize(
-    ("header", "rows", "config", "expected"),
-    [
-        (  # the direct RL run: its evaluations
-            "steps,seconds,eval_success_rate,eval_normalized_reward",
-            ["0,1.0,0.0,-5", "100,2.0,0.5,-1"],
-            {},
-            {"steps": [0, 100], "seconds": [1, 2], "success": [0, 0.5], "rbar": [-5, -1]},
-        ),
-        (  # a curriculum: one row per branch, seconds per branch
-            "branches,stage,branch,steps,seconds,success,rbar,converged,maze",
-            ["1,0,0,50,1.5,1.0,1.0,True,M1_5x5_U", "2,1,0,80,2.5,0.25,-2,False,M2_6x6_C1"],
-            {},
-            {"steps": [50, 80], "seconds": [1.5, 4.0], "success": [1, 0.25], "rbar": [1, -2]},
-        ),
-        (  # direct evolution: the champion's fitness, R̄ when that is the measure
-            "generation,steps,seconds,best,mean,champion,eval_seconds",
-            ["1,10,0.1,-3,-4,-3,0.05", "2,20,0.2,-1,-2,-1,0.05"],
-            {"fitness": "normalized_reward"},
-            {"steps": [10, 20], "seconds": [0.1, 0.2], "rbar": [-3, -1]},
-        ),
-        (  # direct evolution on another measure: no curve of R̄ or success
-            "generation,steps,seconds,best,mean,champion,eval_seconds",
-            ["1,10,0.1,0.5,0.2,0.5,0.05"],
-            {"fitness": "success"},
-            {"steps": [10], "seconds": [0.1]},
-        ),
-    ],
-)
-def test_learning_curves_read_what_each_trainer_logs(
-    tmp_path: Path, header: str, rows: list[str], config: dict, expected: dict
-) -> None:
-    (tmp_path / "progress.csv").write_text("\n".join([header, *rows]) + "\n")
-    write_json(tmp_path / "config.json", config)
-    curve = learning_curve(tmp_path)
-    assert set(curve) == set(expected)
-    for name, values in expected.items():
-        assert curve[name] == pytest.approx(values)
-    assert learning_curve(tmp_path / "nowhere") is None
+def test_with_3_seeds_no_stars_and_the_reason_is_printed(study_folder: Path) -> None:
+    report = (study_folder / "report.md").read_text()
+    assert "**No stars for 12 of 12 pair(s)**: 3 vs 3 seeds, fewer than 5 in a group" in report
+    assert "a two-sided Mann-Whitney U test of 3 against 3 values cannot reach p < 0.1" in report
+    assert "| metric | first | second | n |" not in report  # no table of significant pairs
+    with (study_folder / "tests.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    # some corrected p-values are below 0.05, yet no stars are shown
+    assert any(row["t_p_corrected"] and float(row["t_p_corrected"]) < 0.05 for row in rows)
+    assert all(row["t_stars"] == "" and row["u_stars"] == "" for row in rows)
+    assert all(row["stars_withheld"].startswith("3 vs 3 seeds") for row in rows)
+    assert all((row["n_first"], row["n_second"]) == ("3", "3") for row in rows)

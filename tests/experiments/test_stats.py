@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 from scipy import stats as scipy_stats
 
-from experiments.stats import cohens_d, compare_pairs, rank_biserial, stars
+from experiments.stats import (
+    MIN_SEEDS,
+    cohens_d,
+    compare_pairs,
+    rank_biserial,
+    smallest_u_p,
+    stars,
+    stars_withheld,
+)
 
 
 @pytest.mark.parametrize(
@@ -65,9 +73,9 @@ def benjamini_hochberg(p: list[float]) -> list[float]:
 
 def test_pairs_are_tested_and_corrected_as_by_hand() -> None:
     groups = {
-        "a": [0.10, 0.20, 0.15, 0.12],
-        "b": [0.50, 0.55, 0.61, 0.45],
-        "c": [0.11, 0.25, 0.18, 0.09],
+        "a": [0.10, 0.20, 0.15, 0.12, 0.14],
+        "b": [0.50, 0.55, 0.61, 0.45, 0.52],
+        "c": [0.11, 0.25, 0.18, 0.09, 0.16],
     }
     found = compare_pairs("success_rate", groups)
     assert [(c.first, c.second) for c in found] == [("a", "b"), ("a", "c"), ("b", "c")]
@@ -94,3 +102,33 @@ def test_untestable_pairs_stay_out_of_the_family() -> None:
     assert [c.t_p_corrected for c in tested] == pytest.approx(
         benjamini_hochberg([c.t_p for c in tested])
     )
+
+
+def test_the_smallest_u_p_is_two_orders_out_of_all() -> None:
+    assert smallest_u_p(3, 3) == pytest.approx(0.1)  # 2 / C(6, 3)
+    assert smallest_u_p(2, 2) == pytest.approx(1 / 3)
+    assert smallest_u_p(5, 5) == pytest.approx(2 / 252)
+    assert smallest_u_p(0, 4) == 1.0
+    # scipy's exact test of two fully separated groups reaches it
+    exact = scipy_stats.mannwhitneyu([1, 2, 3], [4, 5, 6], alternative="two-sided").pvalue
+    assert exact == pytest.approx(smallest_u_p(3, 3))
+
+
+def test_with_3_seeds_stars_are_withheld_and_the_reason_given() -> None:
+    far = {"low": [0.10, 0.11, 0.12], "high": [0.90, 0.91, 0.92]}
+    (pair,) = compare_pairs("success_rate", far)
+    assert pair.t_p_corrected < 1e-4  # the t-test alone would say ****
+    assert pair.t_stars == pair.u_stars == ""
+    assert pair.withheld == stars_withheld(3, 3)
+    assert "3 vs 3 seeds, fewer than 5 in a group" in pair.withheld
+    assert "Mann-Whitney U test of 3 against 3 values cannot reach p < 0.1" in pair.withheld
+    assert stars_withheld(4, 6) is not None and stars_withheld(5, 5) is None
+    assert MIN_SEEDS == 5
+
+
+def test_with_6_seeds_stars_are_shown() -> None:
+    far = {"low": [0.10, 0.11, 0.12, 0.13, 0.10, 0.12], "high": [0.90, 0.91, 0.92, 0.9, 0.93, 0.9]}
+    (pair,) = compare_pairs("success_rate", far)
+    assert pair.withheld is None
+    assert pair.t_stars == "****"
+    assert pair.u_stars == stars(pair.u_p_corrected) == "**"  # exact p = 2 / C(12, 6)

@@ -316,8 +316,13 @@ DAMAGED_SUMMARIES = [
     b"\xef\xbb\xbf{}",  # a byte-order mark
     b"[" * 100_000,  # nested too deep
 ]
-#: What is written in place of the readable runs' progress logs.
-DAMAGED_LOGS = [b"garbage\x00\xff", b"steps,seconds\nabc,def\n", b"a,b\n1,2\n"]
+#: What is written as the readable runs' anytime evaluations (evaluations.csv).
+DAMAGED_LOGS = [
+    b"garbage\x00\xff",
+    b"point,fraction,env_steps\nabc,def,1\n",  # not numbers, and columns missing
+    b"a,b\n1,2\n",
+    b"point\n" + b"1\n" * 10 + b"99999999999\n",  # points that do not increase, a huge one
+]
 
 
 def test_a_report_leaves_out_what_it_cannot_read_and_says_so(
@@ -330,7 +335,7 @@ def test_a_report_leaves_out_what_it_cannot_read_and_says_so(
     for run, damage in zip(runs, DAMAGED_SUMMARIES, strict=False):
         (folder.run_folder(run) / "summary.json").write_bytes(damage)
     for run, damage in zip(runs[len(DAMAGED_SUMMARIES) :], DAMAGED_LOGS, strict=False):
-        (folder.run_folder(run) / "progress.csv").write_bytes(damage)
+        (folder.run_folder(run) / "evaluations.csv").write_bytes(damage)
     assert main(["report", str(folder.out)]) == 0
     warnings = capsys.readouterr().err.strip().splitlines()
     assert len(warnings) == len(DAMAGED_SUMMARIES) + len(DAMAGED_LOGS)

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
+from amaze.runs.checkpoint import StateCodec, curriculum_classes, read_checkpoint, write_checkpoint
 from rl_baselines import RLConfigError
 from rl_baselines.cli import main
 from rl_baselines.coevolution import SB3CoevolutionRun
@@ -136,12 +137,31 @@ def test_a_run_checkpoints_its_first_round_and_never_passes_its_budget(
             raise Killed
         return original(self)
 
-    original = SB3CoevolutionRun.round
-    monkeypatch.setattr(SB3CoevolutionRun, "round", round_then_die)
+    original = SB3CoevolutionRun.play_round
+    monkeypatch.setattr(SB3CoevolutionRun, "play_round", round_then_die)
     with pytest.raises(Killed):
         main([*argv, "--config", str(_config(tmp_path)), "--out", str(out)])
     assert (out / "checkpoints" / "state.npz").is_file()
-    monkeypatch.setattr(SB3CoevolutionRun, "round", original)
+    monkeypatch.setattr(SB3CoevolutionRun, "play_round", original)
     assert main(["--resume", str(out), "--no-progress"]) == 0
     rows = _rows(out, "progress.csv")
     assert [int(r["steps"]) for r in rows] == [20, 40]  # a third rollout would pass 50
+
+
+def test_a_checkpoint_of_the_older_layout_resumes(tmp_path: Path) -> None:
+    """A version 2 state (no time breakdown) is read and goes on."""
+    out = tmp_path / "run"
+    short = [*ARGS[:5], "60", *ARGS[6:]]  # 3 rounds
+    assert main([*short, "--config", str(_config(tmp_path)), "--out", str(out)]) == 0
+    path, state_class = out / "checkpoints" / "state.npz", SB3CoevolutionRun.state_class
+    codec = StateCodec([state_class, *curriculum_classes()])
+    state = read_checkpoint(path, codec, RLConfigError, state_class)
+    del state.__dict__["time"]
+    state.version = 2
+    write_checkpoint(path, state, codec)
+    (out / "summary.json").unlink()
+    config = json.loads((out / "config.json").read_text())
+    (out / "config.json").write_text(json.dumps({**config, "budget_steps": 120}))
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["rounds"] == 6 and summary["time"]["learning"] > 0

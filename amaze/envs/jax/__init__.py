@@ -1,0 +1,154 @@
+"""AMaze as a JAX environment: jit, vmap and scan over thousands of mazes.
+
+The one part of :mod:`amaze` that imports JAX (``import amaze`` never loads
+it; an import-linter contract in ``pyproject.toml`` keeps it so)::
+
+    from amaze.envs.jax import make, make_batch
+    env, params = make("M4_10x10_C1", robot="DD")        # one maze
+    obs, state = env.reset(key, params)
+    obs, state, reward, terminated, truncated, info = env.step(key, state, action, params)
+
+:class:`~amaze.envs.jax.env.MazeEnv` has gymnax 1.0's functional interface and
+auto-reset, and reproduces the batch engine's episodes (observations, rewards,
+deadlines, success, collisions, backward steps; the tests compare both step by
+step on hundreds of mazes). Its params (:class:`~amaze.envs.jax.params.MazeParams`)
+are one maze's tables, built from the engine's (:mod:`amaze.agents.tables`).
+Mazes of different sizes are padded to one shape: :func:`make_batch` gives
+the params of many mazes with a leading axis, agent ``k`` playing maze
+``k % len(mazes)`` as in the vector env, and :func:`stack_params` pads and
+stacks params made apart; ``jax.vmap(env.step)`` then steps them all, and a
+new batch of the same padded size runs without recompiling. A PureJaxRL-style
+random rollout of 1024 environments over mixed-size mazes::
+
+    env, params = make_batch(["M1_5x5_C1", "M2_12x9_C1_l.25_L.25", "M3_20x20_C1_t.5_T.5"],
+                             robot="DD", num_envs=1024)  # env k plays maze k % 3
+    obs, state = jax.vmap(env.reset)(jax.random.split(jax.random.key(0), 1024), params)
+    def one_step(state, key):
+        keys = jax.random.split(key, 1025)  # one for the actions, one per environment
+        actions = jax.random.randint(keys[0], (1024,), 0, env.action_space(params).n)
+        obs, state, reward, term, trunc, info = jax.vmap(env.step)(keys[1:], state, actions, params)
+        return state, (reward, term | trunc, info["normalized_reward"])
+    keys = jax.random.split(jax.random.key(1), 500)  # 500 steps
+    state, (rewards, dones, rbar) = jax.lax.scan(one_step, state, keys)
+
+Adapters, loaded on first use: :class:`GymnaxMazeEnv` (``amaze.envs.jax.gymnax_env``),
+a gymnax ``Environment`` for gymnax's wrappers and PureJaxRL-style code, and
+:class:`UEDMazeEnv` (``amaze.envs.jax.jaxued_env``), jaxued's
+``UnderspecifiedEnv`` whose levels are params.
+
+**Scope.** Robots with discrete actions: ``DD`` (8 floats) and the hybrid
+robots ``H5`` ... ``H65`` (``(1, v, v)`` uint8 images, channel first, as
+AMaze-v0). Continuous robots (``CC``) are not supported here (their physics
+has per-step float branching that the batch engine runs in numba); asking for
+one raises :class:`~amaze.errors.OptionError`.
+
+**Installing.** ``pip install "amaze-evo[jax]"`` installs JAX's CPU wheels from
+PyPI (``make`` installs them, at the versions of ``constraints.txt``). For an
+NVIDIA GPU, install JAX's CUDA build instead, at the same version as the
+``jax`` installed: ``pip install "jax[cuda12]==<that version>"`` (Linux x86-64
+or aarch64, CUDA 12 drivers); nothing in amaze-evo requires it, and the same
+code runs on either. The adapters need gymnax (1.0.1) and jaxued (0.0.1):
+``pip install "amaze-evo[jax-adapters]"``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from importlib import import_module
+from typing import Any
+
+import jax.numpy as jnp
+
+from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
+from amaze.agents.robot import Robot
+from amaze.envs.jax.env import MazeEnv, MazeState
+from amaze.envs.jax.params import (
+    MazeLike,
+    MazeParams,
+    compile_params,
+    padded_size,
+    stack_params,
+    unstack,
+)
+from amaze.errors import OptionError
+from amaze.maze.maze import Maze
+from amaze.maze.spec import MazeSpec
+from amaze.validation import check_integer
+
+__all__ = [
+    "GymnaxMazeEnv",
+    "MazeEnv",
+    "MazeParams",
+    "MazeState",
+    "UEDMazeEnv",
+    "make",
+    "make_batch",
+    "padded_size",
+    "stack_params",
+]
+
+_LAZY = {
+    "GymnaxMazeEnv": "amaze.envs.jax.gymnax_env",
+    "UEDMazeEnv": "amaze.envs.jax.jaxued_env",
+}
+
+
+def make(
+    maze: Maze | MazeSpec | str,
+    robot: Robot | str = "DD",
+    *,
+    deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
+    max_cells: int | None = None,
+    max_codes: int | None = None,
+) -> tuple[MazeEnv, MazeParams]:
+    """``(env, params)`` of one maze, as ``gymnax.make`` gives them.
+
+    The reward is AMaze-v0's (the reference's per-step reward) and the deadline
+    ``ceil(deadline_factor * l)`` steps. ``max_cells`` / ``max_codes`` pad the
+    params (see :mod:`amaze.envs.jax.params`), so that they stack with others.
+    """
+    if isinstance(maze, Sequence) and not isinstance(maze, str):
+        raise OptionError(f"make takes one maze, not {type(maze).__name__}: use make_batch")
+    env = MazeEnv(robot)
+    params = compile_params(
+        [maze],
+        env.robot,
+        deadline_factor=deadline_factor,
+        max_cells=max_cells,
+        max_codes=max_codes,
+    )
+    return env, unstack(params)
+
+
+def make_batch(
+    mazes: MazeLike | Sequence[MazeLike],
+    robot: Robot | str = "DD",
+    *,
+    num_envs: int | None = None,
+    deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
+    max_cells: int | None = None,
+    max_codes: int | None = None,
+) -> tuple[MazeEnv, MazeParams]:
+    """``(env, params)`` of ``num_envs`` environments (default: one per maze), for ``vmap``.
+
+    Environment ``k`` plays maze ``k % len(mazes)`` (as AMaze-v0's vector env);
+    the params have a leading axis of ``num_envs``, padded to one size.
+    """
+    env = MazeEnv(robot)
+    params = compile_params(
+        mazes, env.robot, deadline_factor=deadline_factor, max_cells=max_cells, max_codes=max_codes
+    )
+    n_mazes = int(params.start.shape[0])
+    if num_envs is not None:
+        num_envs = check_integer("num_envs", num_envs, minimum=1, error=OptionError)
+        if num_envs != n_mazes:
+            index = jnp.arange(num_envs) % n_mazes
+            params = MazeParams(*(value[index] for value in params))
+    return env, params
+
+
+def __getattr__(name: str) -> Any:
+    """The adapters, imported on first use (they need gymnax and jaxued)."""
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

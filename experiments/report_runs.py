@@ -1,0 +1,210 @@
+"""A study's runs read for its report: one row each, and their anytime evaluations.
+
+:func:`read_runs` reads every finished run of a study: its ``summary.json``
+(a row of ``runs.csv``, :data:`RUN_COLUMNS`) and its ``evaluations.csv``
+(:mod:`experiments.evaluations`), whose last row gives the row's
+evaluation-set figures. A run's file that cannot be read leaves out what it
+would have given (:class:`LeftOut`), not the others.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from amaze.errors import one_line
+from amaze.runs.config import read_json_object
+from amaze.runs.lifecycle import SUMMARY_FILE
+from experiments.evaluations import EvaluationCurve, collect_curves
+from experiments.runner import StudyFolder
+from experiments.study import PlannedRun, Study, StudyError
+
+__all__ = [
+    "RUN_COLUMNS",
+    "LeftOut",
+    "budget_share",
+    "collect_rows",
+    "read_runs",
+    "read_summary",
+    "to_csv",
+]
+
+#: The input classes of the input-recognition test.
+INPUT_CLASSES = ("empty", "lure", "clue", "trap")
+RUN_COLUMNS = (
+    "study",
+    "treatment",
+    "trainer",
+    "algorithm",
+    "budget",
+    "condition",
+    "robot",
+    "seed",
+    "env_steps",
+    "seconds",
+    "budget_unit",
+    "budget_spent",
+    "stopped_early",
+    "wall_seconds",
+    "threads",
+    "core_seconds",
+    "success_rate",
+    "normalized_reward",
+    "input_recognition",
+    *(f"input_{kind}" for kind in INPUT_CLASSES),
+    "eval_set_success_rate",
+    "eval_set_normalized_reward",
+    "evaluation_set",
+    "folder",
+)
+
+
+@dataclass(frozen=True)
+class LeftOut:
+    """Part of a run the report could not read, so left out: which run, what, and why."""
+
+    run: str
+    #: What is missing from the report: ``"its row"``, ``"its evaluations"``...
+    what: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"run {self.run}: {self.what} left out of the report: {self.reason}"
+
+
+def _number(value: Any) -> float:
+    return (
+        float(value) if isinstance(value, int | float) and not isinstance(value, bool) else math.nan
+    )
+
+
+def read_summary(path: Path) -> dict[str, Any]:
+    """The summary in ``path``: a JSON object with its ``env_steps``; StudyError naming it else.
+
+    The other figures are read as numbers where they are numbers (a missing
+    or odd one is an empty cell, as for a trainer that does not report it).
+    """
+    summary = read_json_object(path, StudyError, "summary")
+    steps = summary.get("env_steps")
+    if isinstance(steps, bool) or not isinstance(steps, int | float) or not 0 <= steps < math.inf:
+        raise StudyError(f"summary {str(path)!r}: env_steps {steps!r} is not a number of steps")
+    return summary
+
+
+def budget_share(run: PlannedRun, summary: dict[str, Any]) -> float:
+    """The share of its budget a run spent, in its budget's unit (``PlannedRun.budget_unit``).
+
+    ``summary.json``'s ``budget_spent`` for that unit where it has it; else
+    from its env steps or seconds against the budget (summaries written before).
+    """
+    unit = run.budget_unit
+    recorded = summary.get("budget_spent")
+    if isinstance(recorded, dict) and not math.isnan(_number(recorded.get(unit))):
+        return _number(recorded[unit])
+    budgets = {"steps": (run.budget_steps, "env_steps"), "seconds": (run.budget_seconds, "seconds")}
+    budget, used = budgets.get(unit or "", (None, ""))
+    return _number(summary.get(used)) / float(budget) if budget else math.nan
+
+
+def _row(
+    folder: StudyFolder,
+    study: Study,
+    state: dict[str, Any],
+    run: PlannedRun,
+    summary: dict[str, Any],
+) -> dict[str, Any]:
+    """The ``runs.csv`` row of a run with its summary (evaluation-set columns empty)."""
+    rates = summary.get("input_rates")
+    rates = rates if isinstance(rates, dict) else {}
+    wall = _number(state["wall_seconds"].get(run.id))
+    threads = state["threads"].get(run.id)
+    return {
+        "study": study.name,
+        "treatment": run.treatment,
+        "trainer": run.trainer,
+        "algorithm": run.algorithm,
+        "budget": run.budget,
+        "condition": run.condition,
+        "robot": run.config.get("robot"),
+        "seed": run.seed,
+        "env_steps": int(summary["env_steps"]),
+        "seconds": _number(summary.get("seconds")),
+        "budget_unit": run.budget_unit or "",
+        "budget_spent": budget_share(run, summary),
+        "stopped_early": summary.get("stopped_early") or "",
+        "wall_seconds": wall,
+        "threads": threads if isinstance(threads, int) else "",
+        "core_seconds": wall * threads if isinstance(threads, int) else math.nan,
+        "success_rate": _number(summary.get("success_rate")),
+        "normalized_reward": _number(summary.get("normalized_reward")),
+        "input_recognition": _number(summary.get("input_recognition")),
+        **{f"input_{kind}": _number(rates.get(kind)) for kind in INPUT_CLASSES},
+        "eval_set_success_rate": math.nan,
+        "eval_set_normalized_reward": math.nan,
+        "evaluation_set": "",
+        "folder": str(folder.run_folder(run).relative_to(folder.out)),
+    }
+
+
+def read_runs(
+    folder: StudyFolder, study: Study, left_out: list[LeftOut]
+) -> tuple[list[dict[str, Any]], list[PlannedRun], dict[str, EvaluationCurve]]:
+    """The rows of the finished runs whose summary reads, those runs, and their curves.
+
+    A run whose summary or evaluations cannot be read is added to ``left_out``.
+    """
+    rows, finished = [], []
+    state = folder.state()
+    for run in study.runs:
+        path = folder.run_folder(run) / SUMMARY_FILE
+        if not path.is_file():
+            continue
+        try:
+            summary = read_summary(path)
+        except StudyError as problem:
+            left_out.append(LeftOut(run.id, "its row", one_line(problem)))
+            continue
+        rows.append(_row(folder, study, state, run, summary))
+        finished.append(run)
+
+    def unreadable(run_id: str, what: str, reason: str) -> None:
+        left_out.append(LeftOut(run_id, what, reason))
+
+    curves = collect_curves([(run, folder.run_folder(run)) for run in finished], unreadable)
+    for row, run in zip(rows, finished, strict=True):
+        if run.id in curves:
+            curve = curves[run.id]
+            row["eval_set_success_rate"] = curve.final("success_rate")
+            row["eval_set_normalized_reward"] = curve.final("normalized_reward")
+            row["evaluation_set"] = curve.digest
+    return rows, finished, curves
+
+
+def collect_rows(
+    folder: StudyFolder, study: Study, left_out: list[LeftOut] | None = None
+) -> list[dict[str, Any]]:
+    """One row per finished run of ``study`` in ``folder`` (see :data:`RUN_COLUMNS`).
+
+    A run whose summary cannot be read has no row; it is added to ``left_out``.
+    """
+    found: list[LeftOut] = []
+    rows = read_runs(folder, study, found)[0]
+    if left_out is not None:
+        left_out += found
+    return rows
+
+
+def to_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> bytes:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow(
+            {k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
+        )
+    return buffer.getvalue().encode("utf-8")

@@ -36,19 +36,27 @@ __all__ = ["TAUS", "draw_curves", "draw_profile", "write_comparison_figures"]
 
 #: The thresholds of a performance profile.
 TAUS = np.linspace(0.0, 1.0, 101)
-#: Legend entries per row.
+#: Legend entries per row, and the longest entry (in characters) that fits two to a row
+#: of a column-wide figure; longer names get a row each.
 LEGEND_COLUMNS = 2
+LEGEND_NAME_CHARACTERS = 26
 
 
-def _legend(figure: Any, axes: Any) -> None:
+def _legend_columns(data: ComparisonData) -> int:
+    """Entries per legend row: two, or one where a treatment's name would not fit half a row."""
+    longest = max(len(f"{label(c.treatment)} (n={c.n})") for c in data.treatments)
+    return LEGEND_COLUMNS if longest <= LEGEND_NAME_CHARACTERS else 1
+
+
+def _legend(figure: Any, axes: Any, columns: int) -> None:
     """One legend for the whole figure, under its panels."""
     handles, names = axes.flat[0].get_legend_handles_labels()
-    figure.legend(handles, names, loc="outside lower center", ncol=LEGEND_COLUMNS, handlelength=1.5)
+    figure.legend(handles, names, loc="outside lower center", ncol=columns, handlelength=1.5)
 
 
-def _height(panels_high: float, treatments: int) -> float:
+def _height(panels_high: float, treatments: int, columns: int) -> float:
     """A figure's height: its panels and the legend's rows."""
-    return panels_high + 0.16 * math.ceil(treatments / LEGEND_COLUMNS) + 0.1
+    return panels_high + 0.16 * math.ceil(treatments / columns) + 0.1
 
 
 def draw_curve(ax: Any, curves: TreatmentCurves, bands: Bands, axis: str, colour: str) -> None:
@@ -81,7 +89,7 @@ def draw_curves(data: ComparisonData, palette: Palette, plt: Any) -> Any:
     figure, axes = plt.subplots(
         len(QUANTITIES),
         len(AXES),
-        figsize=(COLUMN_WIDTH, _height(2.7, len(data.treatments))),
+        figsize=(COLUMN_WIDTH, _height(2.7, len(data.treatments), _legend_columns(data))),
         layout="constrained",
         sharex="col",
         sharey="row",
@@ -101,14 +109,15 @@ def draw_curves(data: ComparisonData, palette: Palette, plt: Any) -> Any:
             if col == 0:
                 ax.set_ylabel(y_label)
             ax.grid(True)
-    _legend(figure, axes)
+    _legend(figure, axes, _legend_columns(data))
     return figure
 
 
 def draw_profile(data: ComparisonData, palette: Palette, plt: Any) -> Any:
     """The performance profile of the final agents' success rates, one line per treatment."""
     figure, ax = plt.subplots(
-        figsize=(COLUMN_WIDTH, _height(1.9, len(data.treatments))), layout="constrained"
+        figsize=(COLUMN_WIDTH, _height(1.9, len(data.treatments), _legend_columns(data))),
+        layout="constrained",
     )
     for curves in data.treatments:
         colour = palette(curves.treatment)
@@ -123,7 +132,7 @@ def draw_profile(data: ComparisonData, palette: Palette, plt: Any) -> Any:
     ax.set_xlabel("success rate threshold \u03c4 (final agent, evaluation set)")
     ax.set_ylabel("fraction of runs > \u03c4")
     ax.grid(True)
-    _legend(figure, np.array([ax]))
+    _legend(figure, np.array([ax]), _legend_columns(data))
     return figure
 
 

@@ -22,7 +22,8 @@
   improvement of its pairs), the paper's Table 3 from the standard suite
   with the paper's own numbers beside it (:mod:`experiments.paper`), the
   paper's pairwise tests (stars only where a test can reach them), the
-  standard-suite figures, the runs' parts left out and the compute.
+  standard-suite figures, how often advised curators took the advice, the
+  runs' parts left out and the compute.
 
 The tables are :mod:`experiments.report_tables`'; every one shows its n.
 
@@ -66,6 +67,7 @@ from experiments.report_tables import (
     FLAG,
     METRICS,
     BudgetSpent,
+    advice_table,
     budget_table,
     budgets_spent,
     compute_table,
@@ -363,6 +365,18 @@ def _figures_section(f: Findings) -> list[str]:
 
 def _tail_sections(f: Findings) -> list[str]:
     parts = []
+    advice = advice_table(f.rows, f.study)
+    if advice is not None:
+        parts += [
+            "## Advice taken",
+            "",
+            "Of the runs whose curator was advised (`--advisor`): the share of the advisor's"
+            " proposed picks the decider took, and of its proposed mazes the decider kept"
+            " (`decisions.jsonl`'s `accepted`; `summary.json`'s `advice`).",
+            "",
+            advice,
+            "",
+        ]
     if f.left_out:
         parts += ["## Left out", "", _left_out(f.left_out), ""]
     return [

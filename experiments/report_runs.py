@@ -60,6 +60,8 @@ RUN_COLUMNS = (
     "eval_set_success_rate",
     "eval_set_normalized_reward",
     "evaluation_set",
+    "advice_selections_taken",
+    "advice_mazes_kept",
     "folder",
 )
 
@@ -121,6 +123,8 @@ def _row(
     """The ``runs.csv`` row of a run with its summary (evaluation-set columns empty)."""
     rates = summary.get("input_rates")
     rates = rates if isinstance(rates, dict) else {}
+    advice = summary.get("advice")
+    advice = advice if isinstance(advice, dict) else {}
     wall = _number(state["wall_seconds"].get(run.id))
     threads = state["threads"].get(run.id)
     return {
@@ -147,6 +151,9 @@ def _row(
         "eval_set_success_rate": math.nan,
         "eval_set_normalized_reward": math.nan,
         "evaluation_set": "",
+        # the shares of an advisor's proposals the run's decider took (empty: not advised)
+        "advice_selections_taken": _number(advice.get("selections_taken_share")),
+        "advice_mazes_kept": _number(advice.get("mazes_kept_share")),
         "folder": str(folder.run_folder(run).relative_to(folder.out)),
     }
 

@@ -394,3 +394,23 @@ def compute_table(
         core = float(np.nansum([r["core_seconds"] for r in mine]))
         lines.append(f"| {name} | {len(mine)} | {steps:,.0f} | {shown} | {wall:.0f} | {core:.0f} |")
     return "\n".join(lines)
+
+
+def advice_table(rows: Sequence[dict[str, Any]], study: Study) -> str | None:
+    """Per advised treatment: n, the mean share of proposed picks taken and of proposed mazes kept.
+
+    None when no run was advised (no run's ``summary.json`` has ``advice``).
+    """
+    columns = ("advice_selections_taken", "advice_mazes_kept")
+    lines = [
+        "| treatment | n | proposed picks taken (mean) | proposed mazes kept (mean) |",
+        "|---|---|---|---|",
+    ]
+    for treatment in study.treatments:
+        mine = [r for r in rows if r["treatment"] == treatment]
+        shares = [[r[c] for r in mine if not math.isnan(r.get(c, math.nan))] for c in columns]
+        if not any(shares):
+            continue
+        shown = [f"{np.mean(s):.2f}" if s else "–" for s in shares]
+        lines.append(f"| {treatment} | {len(mine)} | {shown[0]} | {shown[1]} |")
+    return "\n".join(lines) if len(lines) > 2 else None

@@ -457,23 +457,31 @@ class _CuratorCheck:
         self.seen: set[str] = set()
 
     def __call__(self, run_id: str, config: Any) -> None:
-        """Build the curator of ``config`` (a checked curriculum config) unless built already."""
+        """Build the curator of ``config`` (a checked curriculum config) and its advisor, once."""
         if not getattr(config, "is_curriculum", False):
             return
+        from amaze.curriculum.advice import check_advice, make_advisor
         from amaze.curriculum.curators import make_curator
 
         context = config.curator_context()
+        advisor = getattr(config, "advisor", None)
         key = json.dumps(
             [config.curator, context.target, context.stages, context.branches, context.robot,
-             dict(context.options)],
+             dict(context.options), advisor, dict(getattr(config, "advisor_options", {}))],
             sort_keys=True, default=repr,
         )  # fmt: skip
         if key in self.seen:
             return
         try:
-            make_curator(config.curator, context)
+            curator = make_curator(config.curator, context)
         except (ValueError, TypeError) as problem:
             raise self.bad(f"run {run_id}: curator_options: {problem}") from None
+        if advisor is not None:
+            try:
+                make_advisor(advisor, config.advisor_context())
+                check_advice(curator, config.curator, advisor)
+            except (ValueError, TypeError) as problem:
+                raise self.bad(f"run {run_id}: advisor: {problem}") from None
         self.seen.add(key)
 
 

@@ -30,6 +30,10 @@ TRAINERS: dict[str, dict[str, Any]] = {
     "edhucat-moderate": {"regime": "edhucat", "curator": "moderate"},
     "edhucat-risky": {"regime": "edhucat", "curator": "risky"},
     "edhucat-random": {"regime": "edhucat", "curator": "random"},
+    # the automated curator in the same loop as the strategies (the edens regime is open-ended)
+    "edhucat-edens": {"regime": "edhucat", "curator": "edens"},
+    # careful advised by EDEnS: it takes each proposal with probability p (curator_options)
+    "edhucat-follow-edens": {"regime": "edhucat", "curator": "follow", "advisor": "edens"},
     "edens": {"regime": "edens"},
     "coevolution": {"regime": "coevolution"},
 }

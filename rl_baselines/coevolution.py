@@ -8,11 +8,27 @@ its learner, in *rounds*:
 
 1. the population proposes a batch of ``n_envs / 4`` mazes (one environment
    per rotation; ``coevolution.batch`` defaults to that and must match it);
-2. the model learns one rollout (``n_steps x n_envs`` env steps) on them;
-3. the agent (acting deterministically) plays the batch's rotations once:
-   its results score each maze (``learnability`` uses the share of the 4
-   rotations it solved, as the single-agent score of Rutherford et al.'s
-   SFL; ``regret`` the best R̄ it ever had there minus its R̄ now);
+2. the model learns on them, from a fresh start in every environment, for as
+   many rollouts (``n_steps x n_envs`` env steps each) as its longest episode
+   may last: ``ceil(deadline / n_steps)``, where ``deadline`` is the longest
+   deadline of the batch's mazes in steps (:meth:`SB3CoevolutionRun.round_rollouts`).
+   A round shorter than an episode would cut every episode before it could
+   end: the environments restart on the next batch's mazes each round, so an
+   agent learning from rollouts of a few steps (A2C's 5) would never see the
+   end of an episode, nor the goal, and never learn (what A2C co-evolution
+   did with rounds of one rollout);
+3. the round's own episodes score each maze, as PLR and ACCEL score levels
+   from the student's training trajectories: the share of the episodes the
+   model (acting stochastically, as it learns) ended at the goal in each
+   rotation, and their mean R̄ (``learnability`` is ``p (1 - p)`` of that
+   share; ``regret`` the best R̄ ever had there minus the R̄ now). A single
+   deterministic agent rarely solves a fresh maze early in training, so
+   scoring it alone left the population empty, nothing admitted (MCC's
+   criterion: solved at least once), and the regime a domain randomisation
+   too hard to learn from (A2C co-evolution learned nothing at 150 k steps,
+   suite success 0). The agent also plays each rotation once, acting
+   deterministically: ``batch_success_rate`` (and the score of a rotation
+   whose every episode of the round was still running at its end);
 4. every ``coevolution.validation_every`` rounds the agent plays the
    validation mazes; the best there so far is the champion
    (``checkpoints/champion.zip``), the run's agent (``agent.zip`` at the end).
@@ -48,6 +64,7 @@ from typing import Any, ClassVar
 import numpy as np
 import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.agents.engine import BatchEngine
 from amaze.curriculum.coevolution import MazePopulation
@@ -100,8 +117,39 @@ def _play(mazes: list[Maze], agent: SB3Agent) -> EpisodeResults:
     return run_episodes(BatchEngine(mazes, agent.robot, len(mazes)), agent)
 
 
+class RoundEpisodes(BaseCallback):
+    """The episodes each environment ended while the model learned (from SB3's ``infos``).
+
+    Environment ``k`` plays maze ``k`` of the round (one per rotation), so its
+    episodes are that maze's.
+    """
+
+    def __init__(self, n_envs: int) -> None:
+        super().__init__()
+        self.success: list[list[float]] = [[] for _ in range(n_envs)]
+        self.normalized_reward: list[list[float]] = [[] for _ in range(n_envs)]
+
+    def _on_step(self) -> bool:
+        for env, info in enumerate(self.locals["infos"]):
+            if "success" in info:  # an episode ended
+                self.success[env].append(float(info["success"]))
+                self.normalized_reward[env].append(float(info["normalized_reward"]))
+        return True
+
+    def scores(self, played: EpisodeResults) -> tuple[np.ndarray, np.ndarray]:
+        """``(1, mazes)`` success shares and mean R̄: of the round's episodes where a
+        maze has some, else of the deterministic episode ``played``."""
+        success = played.success.astype(np.float64)
+        reward = played.normalized_reward.astype(np.float64)
+        for env, ended in enumerate(self.success):
+            if ended:
+                success[env] = np.mean(ended)
+                reward[env] = np.mean(self.normalized_reward[env])
+        return success[None], reward[None]
+
+
 class SB3CoevolutionRun(CoevolutionRun):
-    """Rounds of one rollout on a batch of a co-evolving maze population."""
+    """Rounds of rollouts on a batch of a co-evolving maze population."""
 
     config_class = TrainConfig
     config: TrainConfig
@@ -181,6 +229,12 @@ class SB3CoevolutionRun(CoevolutionRun):
         if self.champion_file.exists() or self.champion_file.is_symlink():
             SB3Agent.load(self.champion_file)  # a damaged champion is refused here, by name
 
+    def round_rollouts(self, env: SB3VecEnv) -> int:
+        """The rollouts of a round on ``env``'s mazes: enough for its longest episode to end."""
+        assert self.model is not None
+        longest = int(np.ceil(env.engine.tables.deadline.max()))
+        return max(1, -(-longest // int(self.model.n_steps)))
+
     def smallest_unit(self) -> tuple[int, str, str]:
         """One rollout: ``n_steps x n_envs`` env steps."""
         rollout, n_envs = self.rollout, self.config.n_envs
@@ -190,20 +244,30 @@ class SB3CoevolutionRun(CoevolutionRun):
         return steps >= self.config.eval_every
 
     def learn(self, mazes: list[Maze], clock: Clock) -> BatchResults:
-        """One rollout on the batch, then the agent plays each of its mazes once (the scores)."""
+        """Rollouts on the batch (their episodes score it), then the agent plays each maze once."""
         c, s, model = self.config, self.state, self.model
         assert model is not None
-        model.set_env(self._env(mazes))
-        rollout = self.rollout
-        model.learn(total_timesteps=rollout, reset_num_timesteps=False, tb_log_name="coevolution")
+        env = self._env(mazes)
+        model.set_env(env)
+        rollouts = self.round_rollouts(env)
+        if c.budget_steps is not None:  # whole rollouts, never past the budget
+            rollouts = min(rollouts, (c.budget_steps - s.steps) // self.rollout)
+        episodes = RoundEpisodes(env.num_envs)
+        model.learn(
+            total_timesteps=rollouts * self.rollout,
+            callback=episodes,
+            reset_num_timesteps=False,
+            tb_log_name="coevolution",
+        )
         s.steps = int(model.num_timesteps)
         clock.lap("learning")
         agent = SB3Agent(model, c.robot, c.algo)
         played = _play(mazes, agent)
         s.scoring_steps += int(played.steps.sum())
         clock.lap("scoring")
+        success, reward = episodes.scores(played)
         figures = {"batch_success_rate": float(played.success.mean())}
-        return BatchResults(played.success[None], played.normalized_reward[None], [agent], figures)
+        return BatchResults(success, reward, [agent], figures)
 
     def validate(self, candidates: Sequence[Any]) -> Validation:
         """The agent on the validation mazes; its fitness is its mean R̄ there."""

@@ -36,6 +36,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from amaze.agents.robot import as_robot
 from amaze.curriculum.coevolution import MazePopulationConfig
 from amaze.curriculum.regimes import REGIMES, branch_allowance
 from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
@@ -46,6 +47,7 @@ from rl_baselines import RLConfigError
 from rl_baselines.agent import algorithm_class
 
 __all__ = [
+    "FRAMEWORKS",
     "MIN_N_STEPS",
     "TrainConfig",
     "check_rollout_fits",
@@ -55,6 +57,9 @@ __all__ = [
 
 #: The fewest steps per environment a fitted rollout has.
 MIN_N_STEPS = 8
+#: What trains the agent: stable-baselines3, or its A2C/PPO compiled with JAX
+#: (:mod:`rl_baselines.jax`).
+FRAMEWORKS = ("sb3", "jax")
 
 
 @dataclass
@@ -75,6 +80,12 @@ class TrainConfig(RegimeConfig):
     default_eval_mazes = (PAPER_EVALUATION_MAZE,)
 
     algo: str = option("ppo", "SB3 algorithm", choices=("a2c", "ppo"))
+    framework: str = option(
+        "sb3",
+        "what trains the agent: sb3 (stable-baselines3, torch) or jax (the same A2C/PPO"
+        " compiled with JAX: faster, resumes bit for bit, no TensorBoard)",
+        choices=FRAMEWORKS,
+    )
     budget_steps: int | None = option(
         3_000_000, "environment steps (none when --budget-seconds is given alone)"
     )
@@ -85,7 +96,11 @@ class TrainConfig(RegimeConfig):
     )
     eval_every: int = option(50_000, "environment steps between evaluations and checkpoints")
     n_envs: int = option(4, "environments stepped together (a multiple of 4: one per rotation)")
-    tensorboard: bool = option(True, "write TensorBoard logs to OUT/tensorboard")
+    tensorboard: bool | None = option(
+        None,
+        "write TensorBoard logs to OUT/tensorboard (default: on with --framework sb3;"
+        " the jax framework writes none)",
+    )
     hyperparameters: dict[str, Any] = option(
         default_factory=dict,
         help="SB3 hyperparameters overriding SB3's defaults",
@@ -99,6 +114,8 @@ class TrainConfig(RegimeConfig):
         self._check_envs()  # before the regime's checks: a coevolution batch follows from n_envs
         super().validate()
         self._check_budget()
+        if self.tensorboard is None:
+            self.tensorboard = self.framework == "sb3"
         if not isinstance(self.tensorboard, bool):
             raise RLConfigError(f"tensorboard {self.tensorboard!r} is not true or false")
         if self.regime == "direct" and not self.eval_mazes:
@@ -110,7 +127,52 @@ class TrainConfig(RegimeConfig):
             raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
         check_hyperparameters(self.algo, self.hyperparameters)
         self.hyperparameters = used_hyperparameters(self)
+        self._check_framework()
         return self
+
+    def _check_framework(self) -> None:
+        """The jax framework: its regimes, its robots, no TensorBoard, its hyperparameters.
+
+        What the JAX learners do not implement is refused, never ignored: the
+        co-evolution regime (its loop trains SB3 models), robots with
+        continuous actions, TensorBoard logs, and SB3 hyperparameters they
+        lack or values they do not take
+        (:func:`~rl_baselines.jax.hyperparameters.checked_hyperparameters`:
+        ``use_sde``, schedules, other rollout buffers...).
+        """
+        if self.framework not in FRAMEWORKS:
+            raise RLConfigError(
+                f"framework {self.framework!r} is unknown (choose from {', '.join(FRAMEWORKS)})"
+            )
+        if self.framework != "jax":
+            return
+        if self.regime == "coevolution":
+            raise RLConfigError(
+                "framework jax (--framework jax) does not run the coevolution regime"
+                " (--regime coevolution) yet: use --framework sb3 for it"
+            )
+        robot = as_robot(self.robot)
+        if not robot.discrete_outputs:
+            raise RLConfigError(
+                f"robot {self.robot} has continuous actions: framework jax (--framework jax)"
+                " trains robots with discrete actions only (DD, H5 ... H65)"
+            )
+        if self.tensorboard:
+            raise RLConfigError(
+                "tensorboard (--tensorboard) True has no effect with framework jax: it writes"
+                " no TensorBoard logs (progress.csv and evaluations.csv hold its evaluations)"
+            )
+        from rl_baselines.jax.hyperparameters import checked_hyperparameters
+
+        try:
+            checked_hyperparameters(
+                self.algo,
+                self.hyperparameters,
+                robot_images=not robot.discrete_inputs,
+                n_envs=self.n_envs,
+            )
+        except RLConfigError as problem:
+            raise RLConfigError(f"framework jax: {problem}") from None
 
     def _check_envs(self) -> None:
         """``eval_every`` and ``n_envs`` are integers >= 1, ``n_envs`` a multiple of 4."""

@@ -27,6 +27,7 @@ from typing import Any, ClassVar
 
 import torch
 
+from amaze.agents.robot import as_robot
 from amaze.curriculum.learner import branch_seed
 from amaze.curriculum.regimes import MAX_OPEN_STAGES
 from amaze.runs.curriculum import CurriculumRun
@@ -35,7 +36,7 @@ from rl_baselines.config import TrainConfig, fitted_hyperparameters
 from rl_baselines.learner import SB3Learner, load_sb3_learner, new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
 
-__all__ = ["SB3CurriculumRun"]
+__all__ = ["JaxCurriculumRun", "SB3CurriculumRun"]
 
 
 class SB3CurriculumRun(CurriculumRun):
@@ -116,3 +117,51 @@ class SB3CurriculumRun(CurriculumRun):
         """
         self.new_learner(0).model.env.close()
         super().start()
+
+
+class JaxCurriculumRun(SB3CurriculumRun):
+    """The curriculum loop with ``--framework jax``: a JAX learner in every branch.
+
+    The same loop, folder and fitted rollouts as :class:`SB3CurriculumRun`,
+    with a :class:`~rl_baselines.jax_learner.JaxLearner` as the learner;
+    each branch's learner is a JAX trainer (``agent/`` and ``checkpoint/``
+    hold ``trainer/`` and ``learner.json``; agents are saved as SB3 zips). A
+    resumed run ends bit for bit as an uninterrupted one on one machine. No
+    TensorBoard logs.
+    """
+
+    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", *CurriculumRun.outputs)
+
+    def _tensorboard_dir(self) -> str | None:
+        return None
+
+    def new_learner(self, seed: int) -> Any:
+        from rl_baselines.jax.trainer import JaxTrainer
+        from rl_baselines.jax_learner import JaxLearner
+
+        c = self.config
+        trainer = JaxTrainer(
+            c.algo, c.robot, [c.target], self.hyperparameters, seed=seed, n_envs=c.n_envs
+        )
+        return JaxLearner(trainer, seed=seed, eval_every=c.eval_every)
+
+    def load_learner(self, folder: Path) -> Any:
+        from rl_baselines.jax_learner import load_jax_learner
+
+        c = self.config
+        return load_jax_learner(folder, algo=c.algo, robot=c.robot, n_envs=c.n_envs)
+
+    def learner_figures(self) -> dict[str, Any]:
+        return {**super().learner_figures(), "framework": "jax"}
+
+    def start(self) -> None:
+        """The curator (:meth:`CurriculumRun.start`); bad hyperparameters fail first."""
+        from rl_baselines.jax.hyperparameters import checked_hyperparameters
+        from rl_baselines.jax.trainer import JaxTrainer  # noqa: F401 (JAX loads here, once)
+
+        c = self.config
+        checked_hyperparameters(
+            c.algo, self.hyperparameters, robot_images=not as_robot(c.robot).discrete_inputs,
+            n_envs=c.n_envs,
+        )  # fmt: skip
+        CurriculumRun.start(self)

@@ -51,7 +51,14 @@ from rl_baselines.agent import SB3Agent, algorithm_class, load_sb3_model
 from rl_baselines.networks import small_cnn_kwargs
 from rl_baselines.vec_env import SB3VecEnv
 
-__all__ = ["LEARNER_FILE", "MODEL_FILE", "OPTIMAL", "SB3Learner", "load_sb3_learner"]
+__all__ = [
+    "LEARNER_FILE",
+    "MODEL_FILE",
+    "OPTIMAL",
+    "SB3Learner",
+    "checked_session",
+    "load_sb3_learner",
+]
 
 MODEL_FILE = "model.zip"
 LEARNER_FILE = "learner.json"
@@ -120,7 +127,62 @@ class _SessionCallback(BaseCallback):
         return not self.learner.session["converged"] and not self.learner._out_of_time()
 
 
-class SB3Learner:
+class Sessions:
+    """What the two RL learners (SB3's and JAX's) share: a session's record, clock and budgets.
+
+    A session is one call of ``train`` on a list of mazes: its ``session``
+    record (mazes, budgets, steps, seconds, convergence, last evaluation) is
+    saved with the learner, so a killed session continues where it was.
+    """
+
+    session: dict[str, Any] | None
+    _clock: tuple[float, float]
+
+    def _open_session(
+        self, mazes: list[str], budget_steps: int | None, budget_seconds: float | None
+    ) -> dict[str, Any]:
+        """The saved session if it is this one (same mazes and budgets), else a new one."""
+        session = self.session
+        if (
+            session is None
+            or session["mazes"] != mazes
+            or session["budget"] != budget_steps
+            or session.get("budget_seconds") != budget_seconds
+        ):
+            session = self.session = {
+                "mazes": mazes,
+                "budget": budget_steps,
+                "budget_seconds": budget_seconds,
+                "steps": 0,
+                "seconds": 0.0,
+                "converged": False,
+                "last_eval": None,
+            }
+        self._clock = (time.monotonic(), float(session["seconds"]))
+        return session
+
+    def _seconds(self) -> float:
+        """Seconds of the session in progress, over every resumed part of it."""
+        started, before = self._clock
+        return before + (time.monotonic() - started)
+
+    def _out_of_time(self) -> bool:
+        """True once the session in progress has spent its seconds budget (if it has one)."""
+        budget = self.session.get("budget_seconds") if self.session is not None else None
+        return budget is not None and self._seconds() >= budget
+
+    def _goes_on(self, target: int | None) -> bool:
+        """The session in progress has budget left (steps and seconds) and has not converged."""
+        session = self.session
+        assert session is not None
+        return (
+            not session["converged"]
+            and (target is None or session["steps"] < target)
+            and not self._out_of_time()
+        )
+
+
+class SB3Learner(Sessions):
     """An SB3 model in training, as a curriculum drives it (see the module docstring).
 
     ``seed`` seeds the model's random streams (SB3's ``set_random_seed``)
@@ -192,25 +254,9 @@ class SB3Learner:
             budget_steps, budget_seconds, RLConfigError
         )
         mazes = [MazeSpec.from_string(str(m)).to_string() for m in mazes]
-        session = self.session
-        if (
-            session is None
-            or session["mazes"] != mazes
-            or session["budget"] != budget_steps
-            or session.get("budget_seconds") != budget_seconds
-        ):
-            session = self.session = {
-                "mazes": mazes,
-                "budget": budget_steps,
-                "budget_seconds": budget_seconds,
-                "steps": 0,
-                "seconds": 0.0,
-                "converged": False,
-                "last_eval": None,
-            }
+        session = self._open_session(mazes, budget_steps, budget_seconds)
         self._checkpoint = checkpoint
         self._evaluator = Evaluator(self.robot, mazes, inputs=False)
-        self._clock = (time.monotonic(), float(session["seconds"]))
         target = self.session_target(budget_steps)
         model = self.model
         model.set_env(SB3VecEnv(mazes, self.robot, self.n_envs, self.seed))
@@ -293,26 +339,6 @@ class SB3Learner:
 
     # -- the session's own --------------------------------------------------------
 
-    def _seconds(self) -> float:
-        """Seconds of the session in progress, over every resumed part of it."""
-        started, before = self._clock
-        return before + (time.monotonic() - started)
-
-    def _out_of_time(self) -> bool:
-        """True once the session in progress has spent its seconds budget (if it has one)."""
-        budget = self.session.get("budget_seconds") if self.session is not None else None
-        return budget is not None and self._seconds() >= budget
-
-    def _goes_on(self, target: int | None) -> bool:
-        """The session in progress has budget left (steps and seconds) and has not converged."""
-        session = self.session
-        assert session is not None
-        return (
-            not session["converged"]
-            and (target is None or session["steps"] < target)
-            and not self._out_of_time()
-        )
-
     def _session_point(self, steps: int, logger: Any = None) -> None:
         """A rollout starts at ``steps`` of the session: evaluate if due, then checkpoint."""
         session = self.session
@@ -333,7 +359,7 @@ class SB3Learner:
             self._checkpoint()
 
 
-def _checked_session(data: Any, source: str) -> dict[str, Any] | None:
+def checked_session(data: Any, source: str) -> dict[str, Any] | None:
     """The session of ``learner.json``, every field checked."""
     if data is None:
         return None
@@ -411,7 +437,7 @@ def load_sb3_learner(
     log_name = data.get("log_name")
     if not isinstance(log_name, str) or not log_name or "/" in log_name or "\\" in log_name:
         raise RLConfigError(f"{source}: log_name {log_name!r} is not a plain name")
-    session = _checked_session(data.get("session"), source)
+    session = checked_session(data.get("session"), source)
     model_path = folder / MODEL_FILE
     if not (model_path.exists() or model_path.is_symlink()):
         raise RLConfigError(f"model file {str(model_path)!r} is missing")

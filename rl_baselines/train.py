@@ -6,6 +6,10 @@
 are handed to :class:`rl_baselines.curriculum.SB3CurriculumRun` (the
 curriculum loop with an SB3 learner) by :meth:`SB3Run.run_class_for`, so
 :func:`train`, :func:`resume` and ``amaze-train`` take every regime.
+With ``framework`` ``jax`` the same regimes (coevolution aside) train with
+SB3's algorithms compiled with JAX: :class:`rl_baselines.jax_run.JaxRun`
+(direct) and :class:`rl_baselines.curriculum.JaxCurriculumRun`; what both
+direct runs share is :class:`rl_baselines.direct.DirectRun`.
 
 The **direct** regime (paper §4): the agent trains on ``mazes`` (default:
 :data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE`) in their 4 rotations
@@ -23,7 +27,7 @@ how many steps it was found.
 
 A steps budget is spent in whole rollouts (``n_steps x n_envs``), never past
 it: a rollout the steps left cannot pay is not started. A seconds budget is the run's training
-time over every resumed part (:meth:`SB3Run.seconds`: model building,
+time over every resumed part (:meth:`~rl_baselines.direct.DirectRun.seconds`: model building,
 rollouts, SB3's updates, evaluations and checkpoints); learning stops at the
 first env step that finds it spent, and the rollout then in progress is not
 learned from (nor is an evaluation due at a rollout start made then); the
@@ -36,7 +40,7 @@ Run folder (``out``):
 * ``config.json``: the :class:`TrainConfig` (enough to resume);
 * ``progress.csv``: one row per evaluation: ``steps, seconds, eval_success_rate,
   eval_normalized_reward``;
-* ``checkpoints/model.zip`` + ``checkpoints/state.json``: the latest model and the
+* ``checkpoints/latest/model.zip`` + ``state.json``: the latest model and the
   step counter, time spent and evaluation state, each written atomically;
 * ``checkpoints/champion.zip`` + ``.json``: the best agent on the evaluation mazes so far;
 * ``agent.zip`` + ``agent.json``: the agent the run hands over (``agent_rule``);
@@ -60,7 +64,6 @@ run is a faithful continuation, not a bit-identical replay.
 from __future__ import annotations
 
 import os
-import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -71,52 +74,18 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.evaluation.protocol import Evaluator
 from amaze.maze import rotations
-from amaze.runs.anytime import Spent
-from amaze.runs.config import RunConfig, read_json_object
-from amaze.runs.folder import write_json
+from amaze.runs.config import RunConfig
+from amaze.runs.folder import settled_folder, write_folder, write_json
 from amaze.runs.lifecycle import Run, RunResult
 from amaze.runs.progress import Progress
-from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
 from rl_baselines.agent import SB3Agent, load_sb3_model
 from rl_baselines.config import TrainConfig, check_rollout_fits
-from rl_baselines.learner import OPTIMAL, UNLIMITED_STEPS, new_sb3_model
+from rl_baselines.direct import LATEST_FOLDER, PROGRESS_FIELDS, DirectRun
+from rl_baselines.learner import UNLIMITED_STEPS, new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
 
-__all__ = ["SB3Run", "TrainConfig", "resume", "train"]
-
-PROGRESS_FIELDS = ("steps", "seconds", "eval_success_rate", "eval_normalized_reward")
-
-
-def _checked_state(state: dict[str, Any]) -> dict[str, Any]:
-    """``checkpoints/state.json``'s content with every field checked (types and ranges)."""
-
-    def integer(name: str, minimum: int) -> int:
-        return check_integer(
-            f"checkpoint state {name}", state.get(name), minimum=minimum, error=RLConfigError
-        )
-
-    best = state.get("best")
-    if best is not None and not (
-        isinstance(best, list)
-        and len(best) == 2
-        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in best)
-    ):
-        raise RLConfigError(f"checkpoint state best {best!r} is not null or two numbers")
-    if not isinstance(state.get("converged"), bool):
-        raise RLConfigError(f"checkpoint state converged {state.get('converged')!r} is not a bool")
-    seconds = check_number(
-        "checkpoint state seconds", state.get("seconds"), minimum=0, error=RLConfigError
-    )
-    return {
-        "num_timesteps": integer("num_timesteps", 0),
-        "seconds": seconds,
-        "best": best,
-        "converged": state["converged"],
-        "last_eval_steps": integer("last_eval_steps", -1),
-        # absent in run folders written before agent rules: the evaluation at step 0 is unknown
-        "best_steps": integer("best_steps", 0) if "best_steps" in state else 0,
-    }
+__all__ = ["LATEST_FOLDER", "PROGRESS_FIELDS", "SB3Run", "TrainConfig", "resume", "train"]
 
 
 class _EvaluationCallback(BaseCallback):
@@ -135,29 +104,13 @@ class _EvaluationCallback(BaseCallback):
 
     def evaluate_now(self) -> None:
         """Evaluate the current model, update the champion, log and checkpoint."""
-        run, model = self.run, self.model
-        steps = int(model.num_timesteps)
-        agent = SB3Agent(model, run.config.robot, run.config.algo)
+        run = self.run
+        agent = run.current_model_agent()
         assert self.evaluator is not None
-        report = self.evaluator.evaluate(agent)
-        summary = report.summary()
-        score = (float(summary["success_rate"]), float(summary["normalized_reward"]))
-        if run.best is None or score > run.best:
-            run.best, run.best_steps = score, steps
-            agent.save(run.champion_file)
-        run.converged = all(e.normalized_reward >= OPTIMAL for e in report.episodes)
-        run.last_eval_steps = steps
+        score = run.record_evaluation(agent, self.evaluator.evaluate(agent))
         self.logger.record("eval/success_rate", score[0])
         self.logger.record("eval/normalized_reward", score[1])
-        self.logger.dump(steps)
-        run.progress.append(
-            {
-                "steps": steps,
-                "seconds": round(run.seconds(), 3),
-                "eval_success_rate": score[0],
-                "eval_normalized_reward": score[1],
-            }
-        )
+        self.logger.dump(run.steps)
         run.save_checkpoint()
 
     def show(self) -> None:
@@ -182,53 +135,36 @@ class _EvaluationCallback(BaseCallback):
         return not self.run.converged and not self.run.out_of_time()
 
 
-class SB3Run(Run):
+class SB3Run(DirectRun):
     """The RL trainer of the direct regime: SB3 learns, evaluated every ``eval_every`` steps.
 
-    The curriculum regimes run as :class:`~rl_baselines.curriculum.SB3CurriculumRun`
+    The curriculum regimes run as :class:`~rl_baselines.curriculum.SB3CurriculumRun`,
+    a ``--framework jax`` run as :class:`~rl_baselines.jax_run.JaxRun`
     (:meth:`run_class_for`).
     """
 
-    config_class = TrainConfig
-    progress_fields = PROGRESS_FIELDS
-    position_field = "steps"
-    checkpoint_files = ("model.zip", "state.json")
+    checkpoint_files = ("latest/model.zip", "latest/state.json")
     outputs = ("agent.zip", "summary.json", "progress.csv", "tensorboard/")
-    agent_file = "agent.zip"
-    config: TrainConfig
 
     def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
         super().__init__(out, config)
         torch.set_num_threads(1)
         self.model: BaseAlgorithm | None = None
-        self.seconds_before = 0.0
-        self.best: tuple[float, float] | None = None
-        #: Env steps at which the best evaluated model was evaluated.
-        self.best_steps = 0
-        self.converged = False
-        self.last_eval_steps = -1
-        self.started = time.monotonic()
 
-    def seconds(self) -> float:
-        """Wall-clock seconds of training, over every resumed part of the run."""
-        return self.seconds_before + (time.monotonic() - self.started)
+    @property
+    def steps(self) -> int:
+        assert self.model is not None
+        return int(self.model.num_timesteps)
 
-    def out_of_time(self) -> bool:
-        """True once the run's seconds reach ``budget_seconds`` (never without one)."""
-        budget = self.config.budget_seconds
-        return budget is not None and self.seconds() >= budget
+    def current_model_agent(self) -> SB3Agent:
+        assert self.model is not None
+        return SB3Agent(self.model, self.config.robot, self.config.algo)
 
     def _env(self) -> SB3VecEnv:
         """The training environments: the mazes' rotations, cycled through by the environments."""
         c = self.config
         mazes = [rotated for maze in c.mazes for rotated in rotations(maze)]
         return SB3VecEnv(mazes, c.robot, c.n_envs, c.seed)
-
-    @property
-    def champion_file(self) -> Path:
-        """The best evaluated model so far (``champion.zip`` at the top in older run folders)."""
-        legacy = self.out / "champion.zip"
-        return legacy if legacy.exists() else self.checkpoints / "champion.zip"
 
     def _tensorboard_dir(self) -> str | None:
         return str(self.out / "tensorboard") if self.config.tensorboard else None
@@ -237,16 +173,26 @@ class SB3Run(Run):
 
     @classmethod
     def run_class_for(cls, config: RunConfig) -> type[Run]:
-        """:class:`SB3CurriculumRun` for the curriculum regimes, :class:`SB3CoevolutionRun`
-        for coevolution, this class for direct."""
-        if getattr(config, "is_curriculum", False):
-            from rl_baselines.curriculum import SB3CurriculumRun
+        """The run of the config's framework and regime.
 
-            return SB3CurriculumRun
+        SB3: :class:`SB3CurriculumRun` for the curriculum regimes,
+        :class:`SB3CoevolutionRun` for coevolution, this class for direct.
+        JAX (``framework`` jax): :class:`~rl_baselines.curriculum.JaxCurriculumRun`
+        or :class:`~rl_baselines.jax_run.JaxRun` (the config refuses coevolution).
+        """
+        jax = getattr(config, "framework", "sb3") == "jax"
+        if getattr(config, "is_curriculum", False):
+            from rl_baselines.curriculum import JaxCurriculumRun, SB3CurriculumRun
+
+            return JaxCurriculumRun if jax else SB3CurriculumRun
         if getattr(config, "regime", None) == "coevolution":
             from rl_baselines.coevolution import SB3CoevolutionRun
 
             return SB3CoevolutionRun
+        if jax:
+            from rl_baselines.jax_run import JaxRun
+
+            return JaxRun
         return cls
 
     def start(self) -> None:
@@ -265,19 +211,17 @@ class SB3Run(Run):
 
     def restore(self) -> int | None:
         """The SB3 model and the evaluation state of the last checkpoint, checked."""
-        model_file, state_file = self.checkpoints / "model.zip", self.checkpoints / "state.json"
+        latest = settled_folder(self.checkpoints / LATEST_FOLDER)
+        if not latest.exists() and (self.checkpoints / "model.zip").exists():
+            latest = self.checkpoints  # a run folder written before checkpoints were one folder
+        model_file, state_file = latest / "model.zip", latest / "state.json"
         present = [f for f in (model_file, state_file) if f.exists() or f.is_symlink()]
         if not present:
             return None
         if len(present) == 1:
             missing = state_file if present[0] == model_file else model_file
             raise RLConfigError(f"checkpoint file {str(missing)!r} is missing")
-        data = read_json_object(state_file, RLConfigError, "checkpoint file")
-        try:
-            state = _checked_state(data)
-        except RLConfigError as problem:
-            raise RLConfigError(f"checkpoint file {str(state_file)!r}: {problem}") from None
-        self.check_config_digest(data.get("config_sha256"), f"checkpoint file {str(state_file)!r}")
+        steps = self.restore_state(state_file)
         self.model = load_sb3_model(
             model_file,
             self.config.algo,
@@ -285,17 +229,8 @@ class SB3Run(Run):
             env=self._env(),
             tensorboard_log=self._tensorboard_dir(),
         )
-        champion = [self.champion_file, self.champion_file.with_suffix(".json")]
-        if any(f.exists() or f.is_symlink() for f in champion):
-            SB3Agent.load(champion[0])  # a damaged champion is refused here, by name
-        self.seconds_before = state["seconds"]
-        self.best = tuple(state["best"]) if state["best"] is not None else None
-        self.best_steps = state["best_steps"]
-        self.converged = state["converged"]
-        self.last_eval_steps = state["last_eval_steps"]
-        self.started = time.monotonic()
-        self.model.num_timesteps = state["num_timesteps"]
-        return self.model.num_timesteps
+        self.model.num_timesteps = steps
+        return steps
 
     def train(self, progress: str) -> None:
         """Train until a budget is spent or the evaluation episodes are all optimal.
@@ -311,8 +246,7 @@ class SB3Run(Run):
         desc = f"{config.algo} direct seed {config.seed}"
         with Progress(total, unit, desc, mode=progress) as shown:
             callback = _EvaluationCallback(self, shown)
-            mazes = [rotated for maze in config.eval_mazes for rotated in rotations(maze)]
-            callback.evaluator = Evaluator(config.robot, mazes=mazes, inputs=False)
+            callback.evaluator = self.evaluator()
             remaining = UNLIMITED_STEPS
             if config.budget_steps is not None:  # whole rollouts, never past the budget
                 left = config.budget_steps - int(model.num_timesteps)
@@ -332,85 +266,26 @@ class SB3Run(Run):
             callback.init_callback(model)
             callback.show()
 
-    def spent(self) -> Spent:
-        assert self.model is not None
-        steps = int(self.model.num_timesteps)
-        return Spent(steps, steps, self.seconds())
-
-    def final_agent(self) -> SB3Agent:
-        """The model when training stopped, or the best evaluated one (``agent_rule``)."""
-        assert self.model is not None
-        if self.config.agent_rule == "best-eval":
-            return SB3Agent.load(self.champion_file)
-        return SB3Agent(self.model, self.config.robot, self.config.algo)
-
-    def save_agent(self, agent: SB3Agent, path: Path) -> None:
-        agent.save(path)
-
-    def agent_figures(self) -> dict[str, Any]:
-        assert self.model is not None
-        c = self.config
-        steps = self.best_steps if c.agent_rule == "best-eval" else int(self.model.num_timesteps)
-        return {"agent_rule": c.agent_rule, "agent_steps": steps, "agent_untrained": steps == 0}
-
-    def stop_reason(self) -> str:
-        assert self.model is not None
-        c, steps = self.config, int(self.model.num_timesteps)
-        if self.converged:
-            return f"converged: every evaluation episode optimal (R̄ = 1) at {steps:,} env steps"
-        if c.budget_steps is not None and c.budget_steps - steps < self.rollout:
-            return (
-                f"the {c.budget_steps - steps:,} steps left cannot pay another rollout"
-                f" ({self.rollout:,} steps)"
-            )
-        return ""
-
-    def figures(self) -> dict[str, Any]:
-        assert self.model is not None
-        c = self.config
-        return {
-            "env_steps": int(self.model.num_timesteps),
-            "seconds": round(self.seconds(), 3),
-            "budget_steps": c.budget_steps,
-            "budget_seconds": c.budget_seconds,
-            "converged": self.converged,
-            "algo": c.algo,
-            "regime": c.regime,
-            "robot": c.robot,
-            "seed": c.seed,
-        }
-
-    def trajectory_mazes(self) -> list[tuple[str, str]]:
-        """The agent in the 4 rotations of the first evaluation maze."""
-        mazes = rotations(self.config.eval_mazes[0])
-        return [(f"evaluation-rotation-{index}", maze) for index, maze in enumerate(mazes)]
-
-    @classmethod
-    def headline(cls, summary: Mapping[str, Any]) -> str:
-        regime = f"{summary['algo']} {summary['regime']}"
-        return f"{regime}, converged {summary['converged']}: {super().headline(summary)}"
-
     # -- RL's own -------------------------------------------------------------------
 
     def save_checkpoint(self) -> None:
-        """The model and the evaluation state, each written atomically."""
+        """The model and the evaluation state, together in ``checkpoints/latest/``, atomically.
+
+        One folder written whole (:func:`~amaze.runs.folder.write_folder`): a
+        kill between the two files cannot leave a model without its state or
+        with another checkpoint's.
+        """
         assert self.model is not None
-        self.checkpoints.mkdir(parents=True, exist_ok=True)
-        tmp = self.checkpoints / ".model.tmp.zip"
-        self.model.save(tmp)
-        os.replace(tmp, self.checkpoints / "model.zip")
-        write_json(
-            self.checkpoints / "state.json",
-            {
-                "num_timesteps": int(self.model.num_timesteps),
-                "seconds": self.seconds(),
-                "best": list(self.best) if self.best is not None else None,
-                "best_steps": self.best_steps,
-                "converged": self.converged,
-                "last_eval_steps": self.last_eval_steps,
-                "config_sha256": self.config_digest,
-            },
-        )
+        model = self.model
+        state = self.checkpoint_state()
+
+        def fill(folder: Path) -> None:
+            model.save(folder / "model.zip")
+            write_json(folder / "state.json", state)
+
+        write_folder(self.checkpoints / LATEST_FOLDER, fill)
+        for legacy in ("model.zip", "state.json"):  # what a run of an older version left
+            (self.checkpoints / legacy).unlink(missing_ok=True)
 
 
 def train(

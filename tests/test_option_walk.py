@@ -30,6 +30,7 @@ EVERYWHERE = {
     TrainConfig: {
         "robot", "seed", "regime", "algo", "budget_steps", "budget_seconds", "eval_every",
         "n_envs", "tensorboard", "hyperparameters", "evaluation_points", "evaluation_family",
+        "framework",
     },
 }  # fmt: skip
 #: A value other than the default for each regime-bound field (per regime where it matters).
@@ -43,6 +44,8 @@ SAMPLES: dict[str, Any] = {
     "agent_rule": "final",
     "final_training": False,
     "curator_options": {"seed_step": 1},
+    "advisor": "edens",
+    "advisor_options": {"validation": 2},
     "replay": "elsewhere",
     "coevolution": {"capacity": 8},
     "max_generations": 3,
@@ -55,6 +58,8 @@ def _sample(name: str, regime: str) -> dict[str, Any]:
         return {"curator": DEFAULT_CURATOR.get(regime, "random")}
     if name == "epochs":
         return {"epochs": 5, "stages": 0} if regime in ("edhucat", "edens") else {"epochs": 5}
+    if name == "advisor_options" and regime == "edhucat":
+        return {"advisor": "edens", "advisor_options": SAMPLES[name]}  # options need an advisor
     if name == "curator_options" and regime in ("interpolation", "edens"):
         return {"curator_options": {}}  # only the edhucat regime's default curator takes one
     return {name: SAMPLES[name]}

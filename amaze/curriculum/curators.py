@@ -67,6 +67,7 @@ __all__ = [
     "curator_class",
     "curator_names",
     "make_curator",
+    "refuse_unknown_options",
 ]
 
 #: The entry-point group where installed distributions declare their curators.
@@ -81,6 +82,7 @@ BUILTIN_CURATORS: dict[str, str] = {
     "interpolation": "amaze.curriculum.strategies:InterpolationCurator",
     "edens": "amaze.curriculum.edens:EdensCurator",
     "human": "amaze.curriculum.human:TerminalCurator",
+    "follow": "amaze.curriculum.follow:FollowCurator",
 }
 
 
@@ -267,13 +269,23 @@ class CuratorContext:
     robot: str = "DD"
     #: The curator's options (``curator_options`` of the run config).
     options: Mapping[str, Any] = field(default_factory=dict)
+    #: The name of the curator's advisor, when it has one (``--advisor``; see
+    #: :mod:`amaze.curriculum.advice`): it then gets a proposal at every decision.
+    advisor: str | None = None
+    #: ``"curator"`` for the deciding curator, ``"advisor"`` for an advisor: an
+    #: advisor's streams (:meth:`rng`) are its own, apart from the decider's.
+    role: str = "curator"
 
     def rng(self, stage: int, purpose: str) -> np.random.Generator:
         """A generator for one decision: derived from the run's seed, the stage and a purpose.
 
         The same question always gets the same stream, whatever was asked
-        before it (a resumed run asks only the questions that remain).
+        before it (a resumed run asks only the questions that remain). An
+        advisor's context (``role`` ``"advisor"``) gives other streams than the
+        decider's for the same question.
         """
+        if self.role != "curator":
+            purpose = f"{self.role}:{purpose}"
         words = [int(b) for b in purpose.encode("utf-8")]
         return np.random.default_rng(np.random.SeedSequence([self.seed, stage, 0x5EED, *words]))
 
@@ -348,6 +360,20 @@ def make_curator(name: str, context: CuratorContext) -> Curator:
             f"curator {name!r} ({cls.__module__}.{cls.__qualname__}) lacks name, select or generate"
         )
     return curator
+
+
+def refuse_unknown_options(context: CuratorContext, name: str, known: Sequence[str] = ()) -> None:
+    """Refuse the options of ``context`` that the curator ``name`` does not read.
+
+    An option no curator reads would have no effect: the message names it,
+    and the curator as its role says (``curator`` or ``advisor``).
+    """
+    unknown = sorted(set(context.options) - set(known))
+    if unknown:
+        takes = f"known: {', '.join(known)}" if known else "it takes none"
+        raise CuratorError(
+            f"{context.role} {name!r}: unknown option(s) {', '.join(unknown)} ({takes})"
+        )
 
 
 def check_mazes(mazes: Any, k: int, who: str) -> list[str]:

@@ -57,10 +57,18 @@ Options (``curator_options``): ``validation`` (number of mazes, 1..64),
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
-from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
+from amaze.curriculum.advice import changed_fields
+from amaze.curriculum.curators import (
+    Candidate,
+    CuratorContext,
+    CuratorError,
+    History,
+    refuse_unknown_options,
+)
 from amaze.curriculum.difficulty import difficulty
 from amaze.curriculum.distance import maze_distance
 from amaze.curriculum.genome import MazeGenome, SignSet
@@ -68,12 +76,14 @@ from amaze.curriculum.validation import validation_mazes
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
 from amaze.validation import check_integer
 
-__all__ = ["NEUTRAL_OPERATORS", "EdensCurator", "pareto_front"]
+__all__ = ["CRITERIA", "NEUTRAL_OPERATORS", "EdensCurator", "pareto_front"]
 
 #: Draws of a mutant before settling for one equal to its parent.
 _REDRAWS = 8
 #: Operators a directed mutation may always draw: they change the walls, not the family.
 NEUTRAL_OPERATORS = ("seed", "start")
+#: The selection criteria, all maximised (see the module docstring).
+CRITERIA = ("validation_success_rate", "validation_normalized_reward", "difficulty_reached")
 
 
 def pareto_front(
@@ -100,16 +110,13 @@ class EdensCurator:
 
     name = "edens"
     options = ("validation", "mutations", "max_size", "directed")
+    #: It may be advised (:mod:`amaze.curriculum.advice`); it decides by its own rules.
+    takes_advice = True
 
     def __init__(self, context: CuratorContext) -> None:
         self.context = context
         options = dict(context.options)
-        unknown = sorted(set(options) - set(self.options))
-        if unknown:
-            raise CuratorError(
-                f"curator 'edens': unknown option(s) {', '.join(unknown)}"
-                f" (known: {', '.join(self.options)})"
-            )
+        refuse_unknown_options(context, self.name, self.options)
         target = MazeSpec.from_string(context.target)
         count = check_integer(
             "edens validation", options.get("validation", 8), minimum=1, maximum=64,
@@ -142,33 +149,72 @@ class EdensCurator:
             reached,
         )
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Any = None) -> Candidate:
+        """The seeded pick from the Pareto front (``advice``, a proposal, is not read)."""
+        return self.explain_select(candidates)[0]
+
+    def explain_select(
+        self, candidates: Sequence[Candidate]
+    ) -> tuple[Candidate, list[Candidate], list[dict[str, Any]]]:
+        """The pick, the Pareto front it was drawn from, and every candidate's criteria.
+
+        As an advisor, this is its account (:mod:`amaze.curriculum.advice`):
+        each candidate's :data:`CRITERIA` values, and ``extinct`` when it was
+        rejected for reaching no goal on its own maze.
+        """
         alive = [c for c in candidates if c.success_rate > 0] or list(candidates)
         front = pareto_front(alive, self.criteria)
         rng = self.context.rng(candidates[0].stage + 1, "select")
-        return front[int(rng.integers(len(front)))]
+        chosen = front[int(rng.integers(len(front)))]
+        living = {id(c) for c in alive}
+        rows = [
+            {
+                "branch": c.branch,
+                **dict(zip(CRITERIA, self.criteria(c), strict=True)),
+                "extinct": id(c) not in living,
+            }
+            for c in candidates
+        ]
+        return chosen, front, rows
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Any = None) -> list[str]:
+        """Branch 0 the parent's maze, the others mutants (``advice`` is not read)."""
+        return [maze for maze, _ in self.explain_generate(k, history)]
+
+    def explain_generate(self, k: int, history: History) -> list[tuple[str, tuple[str, ...]]]:
+        """The ``k`` mazes, each with the genome operators that made it from the parent's maze.
+
+        Branch 0's maze is the parent's (no operator). Undirected mutants name
+        the fields that changed (:func:`~amaze.curriculum.advice.changed_fields`).
+        """
         parent = history.parent.mazes[0]
         rng = self.context.rng(history.stage, "generate")
-        mazes = [parent]
+        made: list[tuple[str, tuple[str, ...]]] = [(parent, ())]
         for _ in range(k - 1):
             for _ in range(_REDRAWS):
                 count = int(rng.integers(1, self.mutations + 1))
-                mutant = self.mutate(parent, rng, count)
+                mutant, operators = self.mutate_explained(parent, rng, count)
                 if mutant != parent:
                     break
-            mazes.append(mutant)
-        return mazes
+            made.append((mutant, operators))
+        return made
 
     def mutate(self, maze: str, rng: np.random.Generator, count: int) -> str:
         """``maze`` after ``count`` mutation steps (directed ones unless ``directed`` is off)."""
+        return self.mutate_explained(maze, rng, count)[0]
+
+    def mutate_explained(
+        self, maze: str, rng: np.random.Generator, count: int
+    ) -> tuple[str, tuple[str, ...]]:
+        """:meth:`mutate`, with the operators applied, in order."""
         if not self.directed:
-            return self.genome.mutate(maze, rng, n=count).to_string()
-        spec = MazeSpec.from_string(maze)
+            mutant = self.genome.mutate(maze, rng, n=count)
+            return mutant.to_string(), changed_fields(maze, mutant)
+        spec, operators = MazeSpec.from_string(maze), []
         for _ in range(count):
-            spec = self.directed_step(spec, rng)
-        return spec.to_string()
+            names, spec = self._directed(spec, rng)
+            operators.extend(names)
+        return spec.to_string(), tuple(operators)
 
     def directed_step(self, spec: MazeSpec, rng: np.random.Generator) -> MazeSpec:
         """One mutation drawn among the neutral ones and those that come closer to the target.
@@ -177,14 +223,20 @@ class EdensCurator:
         ``rng``, in the genome's order), then one of the admissible mutants is
         drawn uniformly.
         """
+        return self._directed(spec, rng)[1]
+
+    def _directed(
+        self, spec: MazeSpec, rng: np.random.Generator
+    ) -> tuple[tuple[str, ...], MazeSpec]:
+        """:meth:`directed_step` with the operators of the mutant drawn."""
         distance = maze_distance(spec, self.target)
         admissible = []
         for name in self.genome.applicable(spec):
-            mutant = self.genome.apply(name, spec, rng)
+            names, mutant = (name,), self.genome.apply(name, spec, rng)
             if self.target.clue and not mutant.unicursive and not mutant.clue:
                 # Intersections come with the target's clues, as the paper's
                 # mazes do: an agent shown no clue learns to ignore them.
-                mutant = self.genome.apply("add_clue", mutant, rng)
+                names, mutant = (name, "add_clue"), self.genome.apply("add_clue", mutant, rng)
             if name in NEUTRAL_OPERATORS or maze_distance(mutant, self.target) < distance:
-                admissible.append(mutant)
+                admissible.append((names, mutant))
         return admissible[int(rng.integers(len(admissible)))]

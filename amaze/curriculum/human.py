@@ -12,6 +12,19 @@
   the question asked again); an empty line takes the suggestion shown (the
   parent's maze with a new seed).
 
+**Advice** (``--advisor NAME``, :mod:`amaze.curriculum.advice`): the
+advisor's proposal is shown before each question, with its reasons (each
+maze's operators, distance to the target and difficulty; the pick's front and
+every candidate's criteria), and an empty line takes it: the advisor's maze
+for each maze asked, the advisor's pick for the branch.
+
+**The target's family.** Every candidate is also played on
+:data:`PERSON_VALIDATION` mazes of the target's family (seeds disjoint from
+the evaluation suite's; :func:`person_validation`) and its results there are
+shown, so that a person can judge generalisation; the same mazes with or
+without an advisor (an advisor with validation mazes of its own, such as
+``edens``, judges by those: its criteria are in its proposal).
+
 Bad typing never ends the run: the question is asked again. The end of the
 input (Ctrl-D) raises :class:`~amaze.curriculum.curators.CuratorError`; the
 decisions already made are in ``decisions.jsonl`` and a resumed run asks
@@ -21,15 +34,64 @@ only the remaining ones.
 from __future__ import annotations
 
 import sys
+from collections import Counter
 from collections.abc import Sequence
 from typing import TextIO
 
-from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
+from amaze.curriculum.advice import Proposal
+from amaze.curriculum.curators import (
+    Candidate,
+    CuratorContext,
+    CuratorError,
+    History,
+    refuse_unknown_options,
+)
 from amaze.curriculum.genome import new_seed
+from amaze.curriculum.validation import validation_mazes
 from amaze.errors import one_line
 from amaze.maze.spec import MazeSpec
 
-__all__ = ["TerminalCurator", "suggested_mazes"]
+__all__ = [
+    "PERSON_VALIDATION",
+    "TerminalCurator",
+    "describe_proposal",
+    "person_validation",
+    "suggested_mazes",
+]
+
+#: Mazes of the target's family every candidate is shown on, for a person without an advisor.
+PERSON_VALIDATION = 8
+
+
+def person_validation(context: CuratorContext) -> list[str]:
+    """The validation mazes of a person's curator: the target's family, seeds of their own."""
+    seed = int(context.rng(0, "validation").integers(2**31))
+    return validation_mazes(MazeSpec.from_string(context.target), PERSON_VALIDATION, seed)
+
+
+def describe_proposal(proposal: Proposal) -> list[str]:
+    """An advisor's proposal as lines of text: the mazes and their reasons, or the pick."""
+    if proposal.kind == "generate":
+        lines = [f"advisor {proposal.advisor} proposes:"]
+        for index, reason in enumerate(proposal.reasons):
+            counts = Counter(reason.operators)  # in the order applied, a repeated one counted
+            how = ", ".join(f"{op} x{n}" if n > 1 else op for op, n in counts.items())
+            how = how or "the parent's maze, unchanged"
+            lines.append(
+                f"  maze {index + 1}: {reason.maze}  ({how}; distance to the target"
+                f" {reason.distance:.2f}, difficulty {reason.difficulty:.2f})"
+            )
+        return lines
+    front = ", ".join(map(str, proposal.front))
+    lines = [f"advisor {proposal.advisor} proposes branch {proposal.choice} (front: {front})"]
+    for row in proposal.criteria:
+        values = ", ".join(
+            f"{key} {value:.3f}" if isinstance(value, float) else f"{key} {value}"
+            for key, value in row.items()
+            if key != "branch"
+        )
+        lines.append(f"  branch {row.get('branch')}: {values}")
+    return lines
 
 
 def suggested_mazes(context: CuratorContext, history: History, k: int) -> list[str]:
@@ -54,6 +116,8 @@ class TerminalCurator:
     """A person at a terminal (see the module docstring); streams injectable for tests."""
 
     name = "human"
+    #: It shows the advisor's proposal and takes it on an empty line.
+    takes_advice = True
 
     def __init__(
         self,
@@ -61,32 +125,46 @@ class TerminalCurator:
         input: TextIO | None = None,
         output: TextIO | None = None,
     ) -> None:
+        refuse_unknown_options(context, self.name)
         self.context = context
         self.input = input if input is not None else sys.stdin
         self.output = output if output is not None else sys.stdout
+        #: The target's family mazes the candidates are shown on.
+        self.validation = person_validation(context)
 
     # -- the protocol -------------------------------------------------------------
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Proposal | None = None) -> Candidate:
         stage = candidates[0].stage if candidates else "?"
         self._say(f"\n== stage {stage}: choose the branch that goes on ==")
         for candidate in candidates:
             self._say(self.describe(candidate))
         by_branch = {c.branch: c for c in candidates}
         choices = ", ".join(str(b) for b in by_branch)
+        default = ""
+        if advice is not None:
+            for line in describe_proposal(advice):
+                self._say(line)
+            default = f" [empty: {advice.choice}, the advisor's]"
         while True:
-            answer = self._ask(f"branch ({choices}): ").strip()
+            answer = self._ask(f"branch ({choices}){default}: ").strip()
+            if not answer and advice is not None and advice.choice in by_branch:
+                return by_branch[advice.choice]
             try:
                 return by_branch[int(answer)]
             except (ValueError, KeyError):
                 self._say(f"  {answer!r} is not one of the branches {choices}")
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Proposal | None = None) -> list[str]:
         parent = history.mazes[0]
         self._say(f"\n== stage {history.stage}: {k} maze(s) for the next branches ==")
         self._say(f"parent's maze: {parent}")
         self._say(f"target:        {self.context.target}")
         suggestions = suggested_mazes(self.context, history, k)
+        if advice is not None and len(advice.mazes) == k:
+            for line in describe_proposal(advice):
+                self._say(line)
+            suggestions = list(advice.mazes)
         return [self._maze(branch, k, suggestion) for branch, suggestion in enumerate(suggestions)]
 
     # -- helpers --------------------------------------------------------------------
@@ -109,6 +187,12 @@ class TerminalCurator:
             lines.append(
                 f"  on {result.maze}: success {result.success_rate:.2f},"
                 f" R̄ {result.normalized_reward_mean:+.3f}"
+            )
+        if candidate.validation:
+            lines.append(
+                f"  target's family ({len(candidate.validation)} validation mazes): success"
+                f" {candidate.validation_success_rate:.2f},"
+                f" R̄ {candidate.validation_normalized_reward:+.3f}"
             )
         lines.append(
             f"  lineage {list(candidate.lineage)}, {candidate.env_steps} steps"

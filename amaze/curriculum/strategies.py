@@ -89,7 +89,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History
+from amaze.curriculum.curators import (
+    Candidate,
+    CuratorContext,
+    CuratorError,
+    History,
+    refuse_unknown_options,
+)
 from amaze.curriculum.difficulty import difficulty
 from amaze.curriculum.genome import SEED_RANGE, MazeGenome, SignSet, new_seed
 from amaze.curriculum.interpolation import TRIVIAL_SIDE, curriculum
@@ -257,6 +263,8 @@ class _Strategy:
     """What careful, moderate and risky share: options, challenges, fresh seeds."""
 
     name: ClassVar[str]
+    #: It may be advised (:mod:`amaze.curriculum.advice`); it decides by its own rules.
+    takes_advice: ClassVar[bool] = True
     #: The options this curator reads from ``context.options`` (with the shared ones).
     own_options: ClassVar[tuple[str, ...]] = ()
 
@@ -265,12 +273,7 @@ class _Strategy:
         self.target = MazeSpec.from_string(context.target)
         options = dict(context.options)
         known = ("size_step", "probability_step", *self.own_options)
-        unknown = sorted(set(options) - set(known))
-        if unknown:
-            raise CuratorError(
-                f"curator {self.name!r}: unknown option(s) {', '.join(unknown)}"
-                f" (known: {', '.join(known)})"
-            )
+        refuse_unknown_options(context, self.name, known)
         side = max(self.target.width, self.target.height)
         default_step = max(1, math.ceil((side - TRIVIAL_SIDE) / 3))
         self.size_step = check_integer(
@@ -337,10 +340,10 @@ class CarefulCurator(_Strategy):
             error=CuratorError,
         )
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Any = None) -> Candidate:
         return best_candidate(candidates, own_score)
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Any = None) -> list[str]:
         rng = self.context.rng(history.stage, "generate")
         spec = self.parent_spec(history)
         if history.parent.success_rate >= self.threshold:
@@ -353,10 +356,10 @@ class ModerateCurator(_Strategy):
 
     name = "moderate"
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Any = None) -> Candidate:
         return best_candidate(candidates, overall_score)
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Any = None) -> list[str]:
         rng = self.context.rng(history.stage, "generate")
         return self.one_challenge_each(k, self.parent_spec(history), rng)
 
@@ -385,10 +388,10 @@ class RiskyCurator(_Strategy):
             self.genome, max_size=self.max_size, size_step=self.size_step
         )
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Any = None) -> Candidate:
         return best_candidate(candidates, hardest_score(candidates))
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Any = None) -> list[str]:
         rng = self.context.rng(history.stage, "generate")
         parent = self.parent_spec(history)
         mazes = []
@@ -411,15 +414,17 @@ class InterpolationCurator:
     """The interpolation regime as a curator (see the module docstring)."""
 
     name = "interpolation"
+    takes_advice = True
 
     def __init__(self, context: CuratorContext) -> None:
+        refuse_unknown_options(context, self.name)
         self.context = context
         self.plan = curriculum(context.target, max(context.stages, 2))
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Any = None) -> Candidate:
         return best_candidate(candidates, own_score)
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Any = None) -> list[str]:
         spec = self.plan[min(history.stage, len(self.plan) - 1)]
         seeds = self.context.rng(history.stage, "generate").integers(0, SEED_RANGE, k - 1)
         return [spec.to_string(), *reseeded(spec, seeds)]
@@ -429,14 +434,16 @@ class RandomCurator:
     """Domain randomisation: the target's family with fresh seeds (see the module docstring)."""
 
     name = "random"
+    takes_advice = True
 
     def __init__(self, context: CuratorContext) -> None:
+        refuse_unknown_options(context, self.name)
         self.context = context
         self.target = MazeSpec.from_string(context.target)
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Any = None) -> Candidate:
         return best_candidate(candidates, overall_score)
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Any = None) -> list[str]:
         seeds = self.context.rng(history.stage, "generate").integers(0, SEED_RANGE, k)
         return reseeded(self.target, seeds)

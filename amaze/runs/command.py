@@ -244,6 +244,7 @@ class TrainingCommand:
             for f in config_class.command_line_fields()
             if getattr(args, f.name, None) is not None
         ]
+        given += config_class.given_extra_options(args)
         others = {"--config": args.config, "--resume": args.resume, "--replay": args.replay}
         if mode == "--resume":
             others["--out"] = args.out

@@ -250,6 +250,14 @@ class RunConfig:
             parser.add_argument(flag, **kwargs)
 
     @classmethod
+    def given_extra_options(cls, args: argparse.Namespace) -> list[str]:
+        """The flags a subclass's :meth:`add_arguments` adds beyond the fields, given in ``args``.
+
+        (``--resume`` and ``--replay`` refuse them, as the fields' own flags.)
+        """
+        return []
+
+    @classmethod
     def from_file_and_arguments(
         cls, args: argparse.Namespace, config_file: str | None
     ) -> dict[str, Any]:

@@ -86,13 +86,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
-from amaze.curriculum.curators import (
-    Candidate,
-    History,
-    StageRecord,
-    check_mazes,
-    make_curator,
-)
+from amaze.curriculum.curators import Candidate, History, StageRecord
 from amaze.curriculum.learner import Learner, branch_seed
 from amaze.curriculum.regimes import (
     branch_allowance,
@@ -125,7 +119,7 @@ from amaze.runs.decisions import (
     check_against_decisions,
     decision_sequence,
 )
-from amaze.runs.folder import write_bytes, write_json
+from amaze.runs.folder import settled_folder, write_bytes, write_folder, write_json
 from amaze.runs.lifecycle import SPENT_ENOUGH, Run
 from amaze.runs.progress import Progress
 
@@ -175,7 +169,7 @@ class CurriculumRun(CurriculumSummary, Run):
         self.ended_because = ""
         #: What shows the loop's progress while it trains.
         self.shown: Progress | None = None
-        #: The curator's validation mazes and their evaluator, if it has any.
+        #: The curator's and advisor's validation mazes and their evaluator, if they have any.
         self.validation: tuple[Evaluator, list[str]] | None = None
         #: The branch folder whose agent was loaded last, and that agent.
         self._loaded: tuple[Path | None, Any] = (None, None)
@@ -233,26 +227,16 @@ class CurriculumRun(CurriculumSummary, Run):
         return dataclasses.replace(c, replay=str(source))
 
     def start(self) -> None:
-        """Build the curator (a bad name or plug-in fails here) and read a replay's decisions.
+        """Build the curator and its advisor (a bad name, plug-in or pairing fails here).
 
-        A steps budget that cannot give the first branch the learner's
-        smallest unit of training is refused here too, before anything is written.
+        Then read a replay's decisions. A steps budget that cannot give the
+        first branch the learner's smallest unit of training is refused here
+        too, before anything is written.
         """
         c = self.config
         self._check_budget()
         decided = self.decided
-        decided.curator = decided.call_curator(
-            "being built", lambda: make_curator(c.curator, c.curator_context())
-        )
-        validation = decided.call_curator(
-            "giving its validation mazes",
-            lambda: list(getattr(decided.curator, "validation", None) or ()),
-        )
-        if validation:
-            validation = decided.call_curator(
-                "giving its validation mazes",
-                lambda: check_mazes(validation, len(validation), c.curator),
-            )
+        validation = decided.build()
         self.validation = (
             (Evaluator(c.robot, rotations(validation), inputs=False), validation)
             if validation
@@ -296,7 +280,7 @@ class CurriculumRun(CurriculumSummary, Run):
             has_result = (folder / "result.json").exists()
             if folder == final and has_result:
                 self._read_candidate(final, (len({stage for stage, _ in finished}), 0))
-            if has_result or (folder / "checkpoint").exists():
+            if has_result or settled_folder(folder / "checkpoint").exists():
                 self.load_learner(folder / ("agent" if has_result else "checkpoint"))
         return len(finished) + (final / "result.json").exists() or None
 
@@ -547,11 +531,11 @@ class CurriculumRun(CurriculumSummary, Run):
             [rotated for maze in training for rotated in rotations(maze)],
             allowance[0],
             budget_seconds=allowance[1],
-            checkpoint=lambda: learner.save(folder / "checkpoint"),
+            checkpoint=lambda: write_folder(folder / "checkpoint", learner.save),
             progress=report,
         )
         clock.skip()  # the learner keeps the seconds of its session, over every resumed part
-        learner.save(folder / "agent")
+        write_folder(folder / "agent", learner.save)
         agent = learner.agent()
         clock.lap("loading_and_saving")
         results = maze_results(evaluator, agent, mazes)
@@ -581,7 +565,7 @@ class CurriculumRun(CurriculumSummary, Run):
         """
         c = self.config
         stage, branch = started["stage"], started["branch"]
-        if (folder / "checkpoint").exists():
+        if settled_folder(folder / "checkpoint").exists():
             check_branch_record(folder, started, c.error)
             return self.load_learner(folder / "checkpoint")
         if parent is None:

@@ -17,6 +17,7 @@ from amaze.curriculum.curators import Candidate, StageRecord
 from amaze.curriculum.regimes import OPEN_STAGES
 from amaze.maze import rotations
 from amaze.runs.branches import FINAL_FOLDER, branch_folder, time_spent
+from amaze.runs.decisions import Decisions, advice_taken
 
 __all__ = ["CurriculumSummary"]
 
@@ -34,6 +35,7 @@ class CurriculumSummary:
     final: Candidate | None
     finishing: Candidate | None
     ended_because: str
+    decided: Decisions
 
     def learner_figures(self) -> dict[str, Any]:
         """The trainer's entries of ``summary.json`` (algorithm, robot...)."""
@@ -119,6 +121,8 @@ class CurriculumSummary:
             "seed": c.seed,
             "regime": c.regime,
             "curator": c.curator,
+            "advisor": getattr(c, "advisor", None),
+            "advice": advice_taken(self.decided.log.read(c.stages, c.branches, c.error)),
             "stages": c.stages,
             "stages_played": len(self.records),
             "branches": c.branches,

@@ -6,7 +6,11 @@ one JSON object per line, appended (atomically) before the loop acts on it:
 ``select`` with the ``choice``, a branch index, and the ``candidates``'
 figures), the ``curator``'s name, the ``time`` (UTC, ISO 8601) and the
 ``seconds`` the decision took; ``forced`` when there was one candidate,
-``replayed`` when it came from another run (``replay.jsonl``).
+``replayed`` when it came from another run (``replay.jsonl``). A run with an
+advisor (:mod:`amaze.curriculum.advice`) adds, to every decision its curator
+was asked, the advisor's ``proposal`` and ``accepted`` (select: the choice is
+the advisor's pick; generate: for each proposed maze, whether it was kept).
+Lines without them (older runs, runs without an advisor) read as before.
 """
 
 from __future__ import annotations
@@ -20,7 +24,22 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from amaze.curriculum.curators import Candidate, Curator, CuratorError, History, check_mazes
+from amaze.curriculum.advice import (
+    Proposal,
+    check_advice,
+    make_advisor,
+    propose_generate,
+    propose_select,
+    seen_by,
+)
+from amaze.curriculum.curators import (
+    Candidate,
+    Curator,
+    CuratorError,
+    History,
+    check_mazes,
+    make_curator,
+)
 from amaze.curriculum.regimes import (
     MAX_OPEN_STAGES,
     OPEN_STAGES,
@@ -35,6 +54,7 @@ __all__ = [
     "Decision",
     "DecisionLog",
     "Decisions",
+    "advice_taken",
     "check_against_decisions",
     "decision_index",
     "decision_sequence",
@@ -64,6 +84,9 @@ class Decision:
     mazes: tuple[str, ...] | None = None
     forced: bool = False
     replayed: bool = False
+    #: The advisor's proposal, and whether the decision took it (a flag per maze for generate).
+    proposal: Proposal | None = None
+    accepted: bool | tuple[bool, ...] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         data: dict[str, Any] = {
@@ -82,7 +105,52 @@ class Decision:
             data["forced"] = True
         if self.replayed:
             data["replayed"] = True
+        if self.proposal is not None:
+            data["proposal"] = self.proposal.to_dict()
+            accepted = self.accepted
+            data["accepted"] = list(accepted) if isinstance(accepted, tuple) else accepted
         return data
+
+
+def advice_taken(decisions: Sequence[Decision]) -> dict[str, Any] | None:
+    """How often the decider took its advisor's proposals (None: no decision was advised).
+
+    ``selections`` advised and ``selections_taken`` (the proposed branch was
+    chosen); ``mazes_proposed`` and ``mazes_kept`` (proposed mazes the
+    generate decisions kept), and the two shares.
+    """
+    advised = [d for d in decisions if d.proposal is not None]
+    if not advised:
+        return None
+    picks = [bool(d.accepted) for d in advised if d.kind == "select"]
+    mazes = [kept for d in advised if d.kind != "select" for kept in d.accepted or ()]
+    return {
+        "selections": len(picks),
+        "selections_taken": sum(picks),
+        "selections_taken_share": sum(picks) / len(picks) if picks else None,
+        "mazes_proposed": len(mazes),
+        "mazes_kept": sum(mazes),
+        "mazes_kept_share": sum(mazes) / len(mazes) if mazes else None,
+    }
+
+
+def _advice(data: Mapping[str, Any], kind: str) -> dict[str, Any]:
+    """A decision line's ``proposal`` and ``accepted``, checked (none: an unadvised line)."""
+    if "proposal" not in data:
+        return {}
+    proposal = Proposal.from_dict(data["proposal"], kind)
+    accepted = data.get("accepted")
+    if kind == "select":
+        if not isinstance(accepted, bool):
+            raise ValueError(f"accepted {accepted!r} is not true or false")
+        return {"proposal": proposal, "accepted": accepted}
+    if not (
+        isinstance(accepted, list)
+        and len(accepted) == len(proposal.mazes)
+        and all(isinstance(a, bool) for a in accepted)
+    ):
+        raise ValueError(f"accepted {accepted!r} is not a true or false per proposed maze")
+    return {"proposal": proposal, "accepted": tuple(accepted)}
 
 
 def decision_sequence(stages: int) -> list[tuple[int, str]]:
@@ -160,6 +228,10 @@ class DecisionLog:
                 "forced": data.get("forced") is True,
                 "replayed": data.get("replayed") is True,
             }
+            try:
+                common.update(_advice(data, kind))
+            except ValueError as problem:
+                raise bad(str(problem)) from None
             if kind == "generate":
                 count = 1 if stage == 0 else branches
                 try:
@@ -237,8 +309,9 @@ class Decisions:
 
     A resumed run finds its decisions ``recorded`` in the log (a person is
     never asked twice); a replay takes another run's (``replayed``); any other
-    is asked of the ``curator`` now, checked and appended to the log before
-    the loop acts on it. Whatever the curator raises (a plug-in's bug, an
+    is asked of the ``curator`` now, after its ``advisor``'s proposal if it has
+    one (:mod:`amaze.curriculum.advice`), checked and appended to the log
+    before the loop acts on it. Whatever a curator raises (a plug-in's bug, an
     ``OSError``, even ``SystemExit``) ends the run with one error naming it.
     """
 
@@ -249,15 +322,52 @@ class Decisions:
         self.recorded: list[Decision] = []
         self.replayed: list[Decision] = []
         self.curator: Curator | None = None
+        self.advisor: Curator | None = None
 
-    def call_curator(self, doing: str, call: Callable[[], Any]) -> Any:
-        """``call()``, a call into the curator: whatever it raises is the config's error.
+    def build(self) -> list[str]:
+        """Build the curator and its advisor; the validation mazes to play candidates on.
+
+        A bad name, plug-in, option or pairing (an advisor for a curator that
+        takes no advice) fails here, as the config's error. The validation
+        mazes are the curator's, then the advisor's (canonical, each once).
+        """
+        c = self.config
+        advisor = getattr(c, "advisor", None)
+        self.curator = self.call_curator(
+            "being built", lambda: make_curator(c.curator, c.curator_context())
+        )
+        if advisor is not None:
+            self.advisor = self.call_curator(
+                "being built", lambda: make_advisor(advisor, c.advisor_context()), "advisor"
+            )
+        self.call_curator("taking advice", lambda: check_advice(self.curator, c.curator, advisor))
+        mazes: list[str] = []
+        for role, curator in (("curator", self.curator), ("advisor", self.advisor)):
+            given = self.call_curator(
+                "giving its validation mazes",
+                lambda curator=curator: list(getattr(curator, "validation", None) or ()),
+                role,
+            )
+            if given:
+                given = self.call_curator(
+                    "giving its validation mazes",
+                    lambda given=given, role=role: check_mazes(given, len(given), self._name(role)),
+                    role,
+                )
+            mazes += [maze for maze in given if maze not in mazes]
+        return mazes
+
+    def _name(self, role: str) -> str:
+        return str(self.config.advisor if role == "advisor" else self.config.curator)
+
+    def call_curator(self, doing: str, call: Callable[[], Any], role: str = "curator") -> Any:
+        """``call()``, a call into the curator or advisor: whatever it raises is the config's error.
 
         A curator may be a plug-in: its exceptions end the run with one line
         naming the curator and what it was doing, never a traceback or an exit
         status that hides the failure.
         """
-        name, error = self.config.curator, self.config.error
+        name, error = self._name(role), self.config.error
         try:
             return call()
         except KeyboardInterrupt:
@@ -266,40 +376,76 @@ class Decisions:
             raise error(str(problem)) from None
         except (Exception, SystemExit) as problem:
             detail = f"{type(problem).__name__}: {problem}".rstrip(": ")
-            raise error(f"curator {name!r} failed {doing} ({detail})") from None
+            raise error(f"{role} {name!r} failed {doing} ({detail})") from None
 
     def generate(self, stage: int, history: History | Callable[[], list[str]]) -> list[str]:
         """The mazes of ``stage``: the curator's for ``history`` (or what the callable gives)."""
         if callable(history):
-            return self.decide(stage, "generate", history)
-        curator, branches = self.curator, self.config.branches
+            given = history
+            return self.decide(stage, "generate", lambda _: given())
+        curator, advisor, branches = self.curator, self.advisor, self.config.branches
         assert curator is not None
 
-        def ask() -> list[str]:
+        def propose() -> Proposal | None:
+            if advisor is None:
+                return None
+            seen = dataclasses.replace(history, parent=seen_by(advisor, [history.parent])[0])
+            target, name = self.config.target, self._name("advisor")
             return self.call_curator(
-                "generating mazes", lambda: curator.generate(branches, history)
+                "proposing mazes",
+                lambda: propose_generate(advisor, name, branches, seen, target),
+                "advisor",
             )
 
-        return self.decide(stage, "generate", ask)
+        def ask(proposal: Proposal | None) -> list[str]:
+            seen = dataclasses.replace(history, parent=seen_by(curator, [history.parent])[0])
+            if proposal is None:
+                return self.call_curator(
+                    "generating mazes", lambda: curator.generate(branches, seen)
+                )
+            return self.call_curator(
+                "generating mazes", lambda: curator.generate(branches, seen, advice=proposal)
+            )
+
+        return self.decide(stage, "generate", ask, propose=propose)
 
     def select(self, stage: int, candidates: Sequence[Candidate]) -> int:
         """The branch of ``candidates`` (the previous stage's) chosen before ``stage``."""
-        curator, error = self.curator, self.config.error
+        curator, advisor, error = self.curator, self.advisor, self.config.error
         assert curator is not None
 
-        def ask() -> int:
-            chosen = self.call_curator("selecting", lambda: curator.select(list(candidates)))
-            for index, candidate in enumerate(candidates):
+        def propose() -> Proposal | None:
+            if advisor is None:
+                return None
+            seen, name = seen_by(advisor, candidates), self._name("advisor")
+            return self.call_curator(
+                "proposing a choice", lambda: propose_select(advisor, name, seen), "advisor"
+            )
+
+        def ask(proposal: Proposal | None) -> int:
+            seen = seen_by(curator, candidates)
+            if proposal is None:
+                chosen = self.call_curator("selecting", lambda: curator.select(seen))
+            else:
+                chosen = self.call_curator(
+                    "selecting", lambda: curator.select(seen, advice=proposal)
+                )
+            for index, candidate in enumerate(seen):
                 if chosen is candidate or chosen == candidate:
                     return index
             raise error(
                 f"curator {self.config.curator!r} selected {chosen!r}, not one of the candidates"
             )
 
-        return self.decide(stage, "select", ask, candidates)
+        return self.decide(stage, "select", ask, candidates, propose)
 
     def decide(
-        self, stage: int, kind: str, ask: Callable[[], Any], candidates: Sequence[Candidate] = ()
+        self,
+        stage: int,
+        kind: str,
+        ask: Callable[[Proposal | None], Any],
+        candidates: Sequence[Candidate] = (),
+        propose: Callable[[], Proposal | None] | None = None,
     ) -> Any:
         """A decision: recorded already (resume), replayed, or asked now and recorded."""
         index = decision_index(stage, kind)
@@ -311,7 +457,7 @@ class Decisions:
                     self.replayed[index], time=utc_now(), seconds=0.0, replayed=True
                 )
             else:
-                decision = self._asked(stage, kind, ask, candidates)
+                decision = self._asked(stage, kind, ask, candidates, propose)
             self.log.append(decision)
             self.recorded.append(decision)
         if kind == "generate":
@@ -323,15 +469,24 @@ class Decisions:
         return decision.choice
 
     def _asked(
-        self, stage: int, kind: str, ask: Callable[[], Any], candidates: Sequence[Candidate]
+        self,
+        stage: int,
+        kind: str,
+        ask: Callable[[Proposal | None], Any],
+        candidates: Sequence[Candidate],
+        propose: Callable[[], Proposal | None] | None,
     ) -> Decision:
-        """The decision ``ask()`` gives now (a select between one candidate is forced)."""
+        """The decision ``ask()`` gives now, after the advisor's proposal (one candidate: forced).
+
+        ``seconds`` is the decider's time; the advisor's is in its proposal.
+        """
         c = self.config
-        started = time.perf_counter()
         forced = kind == "select" and len(candidates) == 1
-        answer = 0 if forced else ask()
+        proposal = None if forced or propose is None else propose()
+        started = time.perf_counter()
+        answer = 0 if forced else ask(proposal)
         seconds = time.perf_counter() - started
-        common = {
+        common: dict[str, Any] = {
             "stage": stage,
             "kind": kind,
             "curator": c.curator,
@@ -341,10 +496,15 @@ class Decisions:
         }
         if kind == "select":
             figures = tuple(candidate.figures() for candidate in candidates)
+            if proposal is not None:
+                accepted = proposal.accepted(candidates[int(answer)].branch)
+                common.update(proposal=proposal, accepted=accepted)
             return Decision(**common, choice=int(answer), candidates=figures)
         count = 1 if stage == 0 else c.branches
         try:
             mazes = check_mazes(answer, count, c.curator)
         except CuratorError as problem:
             raise c.error(str(problem)) from None
+        if proposal is not None:
+            common.update(proposal=proposal, accepted=tuple(proposal.accepted(mazes)))
         return Decision(**common, mazes=tuple(mazes))

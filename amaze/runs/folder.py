@@ -8,6 +8,8 @@ helpers so that a run killed at any moment leaves readable files behind:
 * :func:`write_json` and :func:`write_bytes` write a temporary file and rename
   it over the old one (atomic on POSIX): a reader sees the old or the new file,
   never half of one;
+* :func:`write_folder` does the same for a folder of several files (a
+  learner's checkpoint): it is read whole, old or new, never a mix of both;
 * :class:`ProgressLog` appends one CSV row per evaluation or generation and,
   on resume, drops the rows written after the checkpoint being resumed, so the
   log of a resumed run reads as that of an uninterrupted one.
@@ -18,11 +20,20 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["OLD_COLUMNS", "ProgressLog", "read_text", "write_bytes", "write_json"]
+__all__ = [
+    "OLD_COLUMNS",
+    "ProgressLog",
+    "read_text",
+    "settled_folder",
+    "write_bytes",
+    "write_folder",
+    "write_json",
+]
 
 #: Columns of ``progress.csv`` files written before R̄ and the success rate had one
 #: name everywhere, and their names now: such a log is read as if written today
@@ -55,6 +66,49 @@ def write_json(path: str | os.PathLike, data: Any) -> Path:
     """Write ``data`` as indented, key-sorted JSON, atomically."""
     text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     return write_bytes(path, text.encode("utf-8"))
+
+
+def write_folder(path: str | os.PathLike, fill: Callable[[Path], None]) -> Path:
+    """Fill the folder ``path`` by ``fill(folder)`` atomically: old or new, never a mix.
+
+    ``fill`` writes into a fresh sibling ``.<name>.tmp``; once it is complete,
+    the old folder is renamed aside (``.<name>.old``), the new one into place,
+    and the old one removed. A kill between the two renames leaves no ``path``
+    but a complete ``.tmp``, which :func:`settled_folder` puts in place. (A
+    learner writes two files; written in place, a kill between them left a
+    checkpoint whose files disagreed, or one without its learner.)
+    """
+    path = Path(path)
+    tmp, old = _aside(path, "tmp"), _aside(path, "old")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    fill(tmp)
+    shutil.rmtree(old, ignore_errors=True)
+    if path.exists():
+        os.replace(path, old)
+    os.replace(tmp, path)
+    shutil.rmtree(old, ignore_errors=True)
+    return path
+
+
+def settled_folder(path: str | os.PathLike) -> Path:
+    """``path`` once what a killed :func:`write_folder` left is put right.
+
+    If the kill came between its two renames, the new folder (complete) takes
+    its place; a half-written ``.tmp`` or a left-over ``.old`` is removed.
+    """
+    path = Path(path)
+    tmp, old = _aside(path, "tmp"), _aside(path, "old")
+    if not path.exists() and old.exists() and tmp.exists():
+        os.replace(tmp, path)
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.rmtree(old, ignore_errors=True)
+    return path
+
+
+def _aside(path: Path, kind: str) -> Path:
+    """The sibling :func:`write_folder` writes through."""
+    return path.with_name(f".{path.name}.{kind}")
 
 
 def read_text(path: Path, error: type[ValueError], what: str) -> str:

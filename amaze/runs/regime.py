@@ -12,9 +12,12 @@ in (``option(regimes=...)``): set in another, the config is refused.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from amaze.curriculum.advice import NOT_ADVISORS
 from amaze.curriculum.coevolution import CoevolutionError, MazePopulationConfig
 from amaze.curriculum.curators import (
     CuratorContext,
@@ -145,9 +148,23 @@ class RegimeConfig(RunConfig):
     )
     curator_options: dict[str, Any] = option(
         default_factory=dict,
-        help="the curator's own options",
+        help="the curator's own options (--curator-option KEY=VALUE)",
         command_line=False,
         regimes=CURRICULUM_REGIMES,
+    )
+    advisor: str | None = option(
+        None,
+        "an automated curator (edens, careful... or a plug-in's) that advises the curator:"
+        " at each decision its proposal comes first, is shown to the curator and recorded"
+        " with whether it was accepted (human, follow and the shipped curators take advice)",
+        metavar="NAME",
+        regimes=("edhucat",),
+    )
+    advisor_options: dict[str, Any] = option(
+        default_factory=dict,
+        help="the advisor's own options (--advisor-option KEY=VALUE)",
+        command_line=False,
+        regimes=("edhucat",),
     )
     replay: str | None = option(
         None,
@@ -256,9 +273,42 @@ class RegimeConfig(RunConfig):
         )
         if not isinstance(self.curator_options, dict):
             raise self.error(f"curator_options {self.curator_options!r} is not a JSON object")
+        self._check_advisor()
         if self.replay is not None and not isinstance(self.replay, str):
             raise self.error(f"replay {self.replay!r} is not a run folder")
         return self
+
+    def _check_advisor(self) -> None:
+        """An advisor is an automated curator; ``follow`` needs one; its options need it."""
+        if not isinstance(self.advisor_options, dict):
+            raise self.error(f"advisor_options {self.advisor_options!r} is not a JSON object")
+        if self.advisor is None:
+            if self.curator == "follow":
+                raise self.error(
+                    "curator 'follow' follows an advisor's proposals: give it one"
+                    " (--advisor NAME, e.g. --advisor edens)"
+                )
+            if self.advisor_options:
+                raise self.error(
+                    f"advisor_options {self.advisor_options!r} without an advisor (--advisor NAME)"
+                )
+            return
+        if not isinstance(self.advisor, str) or self.advisor not in curator_names():
+            raise self.error(
+                f"unknown advisor {self.advisor!r} (choose from an automated curator:"
+                f" {', '.join(n for n in curator_names() if n not in NOT_ADVISORS)})"
+            )
+        if self.advisor in NOT_ADVISORS:
+            raise self.error(
+                f"advisor {self.advisor!r} cannot advise: an advisor is an automated curator"
+                f" that makes its proposal alone (not {' or '.join(NOT_ADVISORS)})"
+            )
+        if self.stages == 1:
+            raise self.error(
+                f"advisor {self.advisor!r} has no effect with 1 stage: the curator makes no"
+                " decision (the first stage's maze is the trivial one and its one branch is"
+                " chosen); give --stages 2 or more, or leave --advisor out"
+            )
 
     def _maze(self, name: str, value: Any) -> str:
         """``value``'s canonical maze string; the config's error naming ``name`` otherwise."""
@@ -295,15 +345,58 @@ class RegimeConfig(RunConfig):
             raise self.error("agent_rule 'best-eval' needs eval_mazes (--eval-mazes A,B,...)")
 
     @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """The config's options, and ``--curator-option`` / ``--advisor-option KEY=VALUE``."""
+        super().add_arguments(parser)
+        for who in ("curator", "advisor"):
+            parser.add_argument(
+                f"--{who}-option",
+                action="append",
+                metavar="KEY=VALUE",
+                dest=f"{who}_option",
+                help=f"one of the {who}'s options (repeatable; VALUE is read as JSON when it"
+                f" can be: p=0.5, base=careful, directed=false), into {who}_options",
+            )
+
+    @classmethod
     def adjust_command_line(cls, data: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
         """``--budget-seconds`` without ``--budget-steps`` is a wall-clock budget alone.
 
         (A trainer's default ``budget_steps`` would otherwise limit it too.) A
         ``--config`` file that sets ``budget_steps`` keeps it: both budgets apply.
+        ``--curator-option`` and ``--advisor-option`` add to the file's options.
         """
         if getattr(args, "budget_seconds", None) is not None and args.budget_steps is None:
             data.setdefault("budget_steps", None)
+        for who in ("curator", "advisor"):
+            given = getattr(args, f"{who}_option", None)
+            if given:
+                options = data.get(f"{who}_options", {})
+                options = dict(options) if isinstance(options, dict) else {}
+                data[f"{who}_options"] = {**options, **cls._key_values(f"--{who}-option", given)}
         return data
+
+    @classmethod
+    def given_extra_options(cls, args: argparse.Namespace) -> list[str]:
+        """The flags of :meth:`add_arguments` given on the command line."""
+        flags = super().given_extra_options(args)
+        given = [who for who in ("curator", "advisor") if getattr(args, f"{who}_option", None)]
+        return flags + [f"--{who}-option" for who in given]
+
+    @classmethod
+    def _key_values(cls, flag: str, items: list[str]) -> dict[str, Any]:
+        """``KEY=VALUE`` items as a dict; a VALUE that is JSON is read as JSON, else as text."""
+        options: dict[str, Any] = {}
+        for item in items:
+            key, equals, text = item.partition("=")
+            if not equals or not key.strip():
+                raise cls.error(f"{flag} {item!r} is not KEY=VALUE")
+            try:
+                value = json.loads(text)
+            except ValueError:
+                value = text
+            options[key.strip()] = value
+        return options
 
     def coevolution_defaults(self) -> dict[str, Any]:
         """The maze population options this trainer fills in when the config leaves them out.
@@ -353,4 +446,14 @@ class RegimeConfig(RunConfig):
             branches=self.branches,
             robot=self.robot,
             options=dict(self.curator_options),
+            advisor=self.advisor,
+        )
+
+    def advisor_context(self) -> CuratorContext:
+        """What the advisor is built from: its options, and streams apart from the curator's."""
+        return dataclasses.replace(
+            self.curator_context(),
+            options=dict(self.advisor_options),
+            advisor=None,
+            role="advisor",
         )

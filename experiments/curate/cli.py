@@ -4,6 +4,7 @@
 
     amaze-curate --out runs/me                         # PPO, DD, 10 stages x 3 branches
     amaze-curate --out runs/me --algo cmaes --budget-steps 600000 --stages 5 --branches 2
+    amaze-curate --out runs/me --advisor edens         # EDEnS proposes, you decide
     amaze-curate --resume runs/me                      # a killed server goes on
     amaze-curate --replay runs/me --out runs/me-again  # the same decisions, no page
 
@@ -69,6 +70,12 @@ def parser() -> CommandParser:
     )
     run.add_argument("--seed", type=int, default=0, help="the run's seed (default: 0)")
     run.add_argument("--target", metavar="MAZE", help="the maze the curriculum leads to")
+    run.add_argument(
+        "--advisor",
+        metavar="NAME",
+        help="an automated curator (edens, careful...) whose proposal the page shows at every"
+        " decision, with its reasons and a button to take it; recorded with whether it was taken",
+    )
     page = p.add_argument_group("the page")
     page.add_argument(
         "--host", default="127.0.0.1", help="address to serve on (default: 127.0.0.1)"
@@ -100,6 +107,8 @@ def _fresh(args: argparse.Namespace) -> tuple[type[Run], Any, Path]:
         data["budget_steps"] = args.budget_steps
     if args.target is not None:
         data["target"] = args.target
+    if args.advisor is not None:
+        data["advisor"] = args.advisor
     config = run_class.config_class.from_dict(data).validate()
     out = Path(args.out)
     Run._check_new_folder(out, config.error)
@@ -131,6 +140,7 @@ def _describe(config: Any) -> dict[str, Any]:
         "branches": config.branches,
         "budget_steps": config.budget_steps,
         "target": config.target,
+        "advisor": getattr(config, "advisor", None),
     }
 
 
@@ -229,6 +239,12 @@ def _serve(args: argparse.Namespace, base: type[CurriculumRun], config: Any, out
 
 def _run(argv: Sequence[str]) -> int:
     args = parser().parse_args(list(argv))
+    for mode in ("replay", "resume"):
+        if getattr(args, mode) and args.advisor is not None:
+            raise UsageError(
+                f"--advisor {args.advisor} would be ignored: --{mode} takes the run's own"
+                " advisor from its config.json; leave --advisor out"
+            )
     if args.replay:
         if not args.out:
             raise UsageError("--replay needs --out, the folder of the new run")

@@ -11,6 +11,7 @@ field or the string's bad token, shown inline next to the field.
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Mapping
 from typing import Any
@@ -33,6 +34,7 @@ __all__ = [
     "maze_card",
     "maze_fields",
     "spec_from_fields",
+    "strict_maze",
     "with_new_seed",
 ]
 
@@ -63,6 +65,59 @@ def parse_maze(text: Any) -> tuple[MazeSpec, list[str]]:
             raise DesignError(one_line(problem)) from None
     notes = [one_line(w.message) for w in caught if issubclass(w.category, MazeStringWarning)]
     return spec, notes
+
+
+#: A parser message that names the token it is about.
+_TOKEN = re.compile(r"token '([^']*)'")
+#: A size token (``7x7``): the parser's size errors name the side, not the token.
+_SIZE = re.compile(r"^\d+x\d+$")
+#: Most bad tokens a string is searched for (a string has a handful of tokens).
+_MAX_PROBLEMS = 32
+
+
+def _without_prefix(message: str) -> str:
+    """A parser message without its ``maze string '...': `` prefix."""
+    return re.sub(r"^maze string '.*?': ", "", message)
+
+
+def strict_maze(text: Any) -> MazeSpec:
+    """The spec of a maze string in which every token has its effect; else every bad token named.
+
+    The page refuses what the parser only warns of (a token without effect,
+    such as ``l.25`` without a lure sign, or the tail of ``Ux``): a person who
+    typed it meant something the agent would not get. A string with several
+    bad tokens names them all (the parser stops at its first error: the
+    token it names is set aside and the rest parsed again).
+    """
+    if not isinstance(text, str):
+        raise DesignError(f"maze string {text!r} is not text")
+    tokens = text.strip().split("_")
+    problems: list[str] = []
+    spec: MazeSpec | None = None
+    while len(problems) < _MAX_PROBLEMS:
+        try:
+            spec, notes = parse_maze("_".join(tokens) if tokens else text)
+        except DesignError as problem:
+            message = _without_prefix(str(problem))
+            problems.append(message)
+            named = _TOKEN.search(message)
+            if named and named.group(1) in tokens:
+                tokens.remove(named.group(1))
+            elif message.startswith(("width", "height")):
+                sizes = [t for t in tokens if _SIZE.match(t)]
+                if not sizes:
+                    break
+                tokens.remove(sizes[0])
+            else:
+                break
+            if not tokens:
+                break
+            continue
+        problems += [_without_prefix(note) for note in notes]
+        break
+    if problems or spec is None:
+        raise DesignError("; ".join(problems) or f"maze string {text!r} cannot be read")
+    return spec
 
 
 def maze_fields(spec: MazeSpec) -> dict[str, Any]:

@@ -63,6 +63,7 @@ from experiments.curate.design import (
     maze_card,
     parse_maze,
     spec_from_fields,
+    strict_maze,
     with_new_seed,
 )
 from experiments.curate.session import AnswerError, CurationSession
@@ -342,6 +343,7 @@ def _add_maze_routes(app: FastAPI, pictures: _Pictures, seeds: np.random.Generat
             text = data.get("string")
             if not isinstance(text, str):
                 raise DesignError(f"maze string {text!r} is not text")
+            strict_maze(text)  # every bad token named, those without effect too
         if data.get("new_seed") is True:
             with seeds_lock:
                 text = with_new_seed(text, seeds)

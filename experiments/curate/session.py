@@ -28,13 +28,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from amaze.curriculum.advice import Proposal
 from amaze.curriculum.curators import Candidate, CuratorContext, CuratorError, History, MazeResults
-from amaze.curriculum.human import suggested_mazes
+from amaze.curriculum.human import person_validation, suggested_mazes
 from amaze.errors import AmazeError, one_line
 from amaze.runs.branches import BranchProgress, branch_folder
 from amaze.runs.curriculum import CurriculumRun
 from amaze.runs.lifecycle import RunResult
-from experiments.curate.design import DesignError, maze_card, parse_maze
+from experiments.curate.design import DesignError, maze_card, strict_maze
 
 __all__ = ["AnswerError", "BrowserCurator", "CurationSession", "Question"]
 
@@ -91,8 +92,41 @@ def _results(result: MazeResults, index: int) -> dict[str, Any]:
     }
 
 
+def family_view(candidate: Candidate) -> dict[str, Any] | None:
+    """A candidate's results on the target's family (its validation mazes), if it has any."""
+    if not candidate.validation:
+        return None
+    return {
+        "mazes": len(candidate.validation),
+        "success_rate": round(candidate.validation_success_rate, 4),
+        "normalized_reward": round(candidate.validation_normalized_reward, 4),
+        "solved": sum(r.solved for r in candidate.validation),
+    }
+
+
+def last_result_view(candidate: Candidate) -> dict[str, Any]:
+    """How the agent did on the maze it trained on last (the design step shows it)."""
+    own = candidate.own[0]
+    return {
+        **_results(own, candidate.branch),
+        "stage": candidate.stage,
+        "branch": candidate.branch,
+        "converged": candidate.converged,
+        "family": family_view(candidate),
+    }
+
+
+def proposal_view(proposal: Proposal | None) -> dict[str, Any] | None:
+    """The advisor's proposal as the page shows it: its decision and reasons."""
+    if proposal is None:
+        return None
+    data = proposal.to_dict()
+    data["kind"] = proposal.kind
+    return data
+
+
 def candidate_view(candidate: Candidate, stage_mazes: Sequence[str]) -> dict[str, Any]:
-    """What the page shows of a candidate: figures, results per maze, lineage."""
+    """What the page shows of a candidate: figures, results per maze and on the family, lineage."""
     results = [*candidate.own, *candidate.others]
     by_maze: list[dict[str, Any]] = []
     others = iter(candidate.others)
@@ -114,37 +148,57 @@ def candidate_view(candidate: Candidate, stage_mazes: Sequence[str]) -> dict[str
         "lineage_steps": candidate.lineage_steps,
         "seconds": round(candidate.seconds, 2),
         "converged": candidate.converged,
+        "family": family_view(candidate),
     }
 
 
 class BrowserCurator:
-    """The ``human`` curator whose person answers on the page (see the module docstring)."""
+    """The ``human`` curator whose person answers on the page (see the module docstring).
+
+    With an advisor (``--advisor``), its proposal is on the page, marked, with
+    its reasons and one button to take it; the mazes' editors start from it.
+    Candidates are shown on the person's validation mazes of the target's
+    family (:func:`~amaze.curriculum.human.person_validation`).
+    """
 
     name = "human"
+    #: It shows the advisor's proposal (:mod:`amaze.curriculum.advice`).
+    takes_advice = True
 
     def __init__(self, session: CurationSession, context: CuratorContext) -> None:
         self.session = session
         self.context = context
+        #: The target's family mazes the candidates are shown on (the terminal curator's).
+        self.validation = person_validation(context)
 
-    def select(self, candidates: Sequence[Candidate]) -> Candidate:
+    def select(self, candidates: Sequence[Candidate], advice: Proposal | None = None) -> Candidate:
         stage = candidates[0].stage + 1
         mazes = [c.mazes[0] for c in sorted(candidates, key=lambda c: c.branch)]
-        content = {"candidates": [candidate_view(c, mazes) for c in candidates], "mazes": mazes}
+        content = {
+            "candidates": [candidate_view(c, mazes) for c in candidates],
+            "mazes": mazes,
+            "advice": proposal_view(advice),
+        }
         choices = tuple(c.branch for c in candidates)
         branch = self.session.ask(Question("select", stage, content, choices=choices))
         return next(c for c in candidates if c.branch == branch)
 
-    def generate(self, k: int, history: History) -> list[str]:
+    def generate(self, k: int, history: History, advice: Proposal | None = None) -> list[str]:
         parent = history.mazes[0]
         previous = history.stages[-1].mazes if history.stages else (parent,)
+        suggestions = suggested_mazes(self.context, history, k)
+        if advice is not None and len(advice.mazes) == k:
+            suggestions = list(advice.mazes)
         content = {
             "k": k,
             "parent": maze_card(parent),
+            "last_result": last_result_view(history.parent),
             # how far the target still is from the parent's maze
             "target": maze_card(self.context.target, parent),
             "previous": list(previous),
-            "suggestions": suggested_mazes(self.context, history, k),
+            "suggestions": suggestions,
             "lineage": list(history.parent.lineage),
+            "advice": proposal_view(advice),
         }
         return self.session.ask(Question("generate", history.stage, content, count=k))
 
@@ -345,7 +399,7 @@ class CurationSession:
         problems: list[str | None] = []
         for text in value:
             try:
-                mazes.append(parse_maze(text)[0].to_string())
+                mazes.append(strict_maze(text).to_string())
                 problems.append(None)
             except DesignError as problem:
                 problems.append(str(problem))
@@ -424,6 +478,8 @@ class CurationSession:
                 "mazes": list(d.mazes or ()),
                 "forced": d.forced,
                 "replayed": d.replayed,
+                "advisor": None if d.proposal is None else d.proposal.advisor,
+                "accepted": list(d.accepted) if isinstance(d.accepted, tuple) else d.accepted,
             }
             for d in list(run.decided.recorded)
         ]

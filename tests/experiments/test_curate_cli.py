@@ -39,6 +39,11 @@ SESSION = ["--algo", "cmaes", "--budget-steps", "24000", "--stages", "3", "--bra
         (["--resume", "nowhere"], "nowhere"),
         (["--replay", "nowhere", "--out", "y"], "nowhere"),
         (["--replay", "nowhere"], "--out"),
+        (["--advisor", "nobody", "--out", "x"], "unknown advisor 'nobody'"),
+        (["--advisor", "human", "--out", "x"], "advisor 'human' cannot advise"),
+        (["--advisor", "edens", "--stages", "1", "--out", "x"], "no effect with 1 stage"),
+        (["--resume", "nowhere", "--advisor", "edens"], "--advisor edens would be ignored"),
+        (["--replay", "a", "--out", "y", "--advisor", "edens"], "--advisor edens would be ignored"),
     ],
 )
 def test_bad_options_give_one_error_line_and_status_2(

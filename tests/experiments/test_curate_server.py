@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from amaze.curriculum.human import PERSON_VALIDATION
 from amaze.maze.spec import MazeSpec
 from experiments.curate.server import COOKIE, MAX_BODY, create_app
 from experiments.curate.session import CurationSession
@@ -35,13 +36,15 @@ DESCRIPTION = {"algo": "toy", "robot": "DD", "seed": 0, "stages": 3, "branches":
 WAIT = 60.0
 
 
-def new_session(out: Path, resume: bool = False) -> tuple[CurationSession, TestClient]:
+def new_session(
+    out: Path, resume: bool = False, config: dict | None = None
+) -> tuple[CurationSession, TestClient]:
     session = CurationSession(out, {**DESCRIPTION, "budget_steps": 6000, "target": "M5_8x8_C1"})
     run_class = session.run_class(ToyRun)
     if resume:
         session.start(lambda: run_class.resume(out))
     else:
-        session.start(lambda: run_class.fresh(CONFIG, out))
+        session.start(lambda: run_class.fresh(config or CONFIG, out))
     client = TestClient(create_app(session, TOKEN, csrf=CSRF))
     client.cookies.set(COOKIE, TOKEN)
     return session, client
@@ -178,6 +181,27 @@ def test_a_bad_maze_is_a_400_naming_the_value(live, body: dict, named: str) -> N
     assert named in response.json()["error"]
 
 
+@pytest.mark.parametrize(
+    ("string", "named"),
+    [
+        ("M4_7x7_Ux_l.25", ["'Ux'", "'l.25'"]),  # both without effect: each named
+        ("M4_7x7_Q_Zq_Ux", ["'Q'", "'Zq'", "'Ux'"]),  # the parser stops at 'Q': all named
+        ("M4_150x7_Q", ["'Q'", "width 150"]),
+        ("M4_7x7_C2_L2", ["'C2'", "'L2'"]),
+    ],
+)
+def test_every_bad_token_of_a_maze_string_is_named(live, string: str, named: list) -> None:
+    session, client = live
+    response = post(client, "/api/maze", {"string": string})
+    assert response.status_code == 400
+    for words in named:
+        assert words in response.json()["error"], (words, response.json())
+    # an answer is checked as strictly: the agent never trains on what was not meant
+    asked = question(session, client)
+    bad = post(client, "/api/answer", {"question": asked["id"], "answer": [string, "M4_5x5"]})
+    assert bad.status_code == 400 and named[0] in bad.json()["details"][0]
+
+
 def test_bad_fields_are_named(live) -> None:
     _session, client = live
     card = post(client, "/api/maze", {"string": "M4_10x10_C1"}).json()
@@ -237,6 +261,10 @@ def test_a_whole_session_over_http_records_the_persons_decisions(live) -> None:
     asked = question(session, client)
     assert asked["id"] == "select-2"
     assert [c["branch"] for c in asked["candidates"]] == [0, 1]
+    for candidate in asked["candidates"]:  # on the target's family too
+        assert candidate["family"]["mazes"] == PERSON_VALIDATION
+        assert 0 <= candidate["family"]["success_rate"] <= 1
+    assert asked["advice"] is None
     assert [r["maze"] for r in asked["candidates"][1]["results"]] == stage1
     episode = client.get("/api/episode/1/1/0").json()
     assert episode["maze"] == stage1[0]
@@ -250,6 +278,10 @@ def test_a_whole_session_over_http_records_the_persons_decisions(live) -> None:
 
     asked = question(session, client)
     assert asked["id"] == "generate-2"
+    # how the chosen agent did on its own maze, the design step's first figure
+    assert asked["last_result"]["maze"] == stage1[1]
+    assert asked["last_result"]["branch"] == 1 and len(asked["last_result"]["success"]) == 4
+    assert asked["last_result"]["family"]["mazes"] == PERSON_VALIDATION
     stage2 = asked["suggestions"]
     post(client, "/api/answer", {"question": "generate-2", "answer": stage2})
     asked = question(session, client)
@@ -277,6 +309,46 @@ def test_a_whole_session_over_http_records_the_persons_decisions(live) -> None:
     training = state["training"]
     assert training["steps"] == 6000  # the toy learner spends its allowances exactly
     assert [(b["branch"], b["done"]) for b in training["branches"]] == [(0, True), (1, True)]
+
+
+def test_an_advised_session_shows_each_proposal_and_records_what_was_taken(
+    tmp_path: Path,
+) -> None:
+    session, client = new_session(tmp_path / "run", config={**CONFIG, "advisor": "edens"})
+    try:
+        asked = question(session, client)
+        advice = asked["advice"]
+        assert advice["advisor"] == "edens" and advice["kind"] == "generate"
+        assert asked["suggestions"] == advice["mazes"]  # the editors start from the proposal
+        assert [r["maze"] for r in advice["reasons"]] == advice["mazes"]
+        assert {"operators", "distance", "difficulty"} <= set(advice["reasons"][1])
+        mine = ["M4_6x6_C1", advice["mazes"][1]]  # one kept, one overridden
+        assert post(client, "/api/answer", {"question": asked["id"], "answer": mine}).json()
+
+        asked = question(session, client)
+        advice = asked["advice"]
+        assert advice["kind"] == "select" and advice["choice"] in advice["front"]
+        assert [row["branch"] for row in advice["criteria"]] == [0, 1]
+        post(client, "/api/answer", {"question": asked["id"], "answer": advice["choice"]})
+
+        asked = question(session, client)
+        post(client, "/api/answer", {"question": asked["id"], "answer": asked["advice"]["mazes"]})
+        asked = question(session, client)
+        other = 1 - asked["advice"]["choice"]
+        post(client, "/api/answer", {"question": asked["id"], "answer": other})
+        assert session.wait_for("finished", WAIT), session.error
+        history = client.get("/api/state").json()["history"]["decisions"]
+        assert [d["accepted"] for d in history] == [None, None, [False, True], True, [True, True],
+                                                    False]  # fmt: skip
+        assert {d["advisor"] for d in history[2:]} == {"edens"}
+    finally:
+        session.close()
+        session.wait(WAIT)
+    lines = [
+        json.loads(line) for line in (session.out / "decisions.jsonl").read_text().splitlines()
+    ]
+    assert [d.get("accepted") for d in lines] == [d["accepted"] for d in history]
+    assert lines[2]["proposal"]["mazes"][1] == lines[2]["mazes"][1]
 
 
 def test_a_stopped_server_resumes_at_the_waiting_question(tmp_path: Path) -> None:

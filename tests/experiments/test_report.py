@@ -52,6 +52,8 @@ def study_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
             "env_steps": 100_000 + run.seed,
             "seconds": 10.0 * (run.seed + 1),
         }
+        if run.trainer == "interpolation" and run.algorithm == "ppo":  # as if advised
+            summary["advice"] = {"selections_taken_share": run.seed / 2, "mazes_kept_share": 0.25}
         write_json(folder.run_folder(run) / "summary.json", summary)
         write_json(folder.run_folder(run) / "config.json", run.config)
         wall[run.id] = 20.0 + run.seed
@@ -162,3 +164,15 @@ def test_with_3_seeds_no_stars_and_the_reason_is_printed(study_folder: Path) -> 
     assert all(row["t_stars"] == "" and row["u_stars"] == "" for row in rows)
     assert all(row["stars_withheld"].startswith("3 vs 3 seeds") for row in rows)
     assert all((row["n_first"], row["n_second"]) == ("3", "3") for row in rows)
+
+
+def test_the_report_says_how_often_advised_runs_took_the_advice(study_folder: Path) -> None:
+    with (study_folder / "runs.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    advised = [r for r in rows if r["treatment"] == "interpolation/ppo/steps"]
+    assert sorted(r["advice_selections_taken"] for r in advised) == ["0.0", "0.5", "1.0"]
+    assert {r["advice_mazes_kept"] for r in rows if r not in advised} == {""}
+    report = (study_folder / "report.md").read_text()
+    section = report.split("## Advice taken")[1].split("## ")[0]
+    assert "| interpolation/ppo/steps | 3 | 0.50 | 0.25 |" in section
+    assert "direct/" not in section  # treatments without an advisor have no row

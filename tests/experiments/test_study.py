@@ -120,3 +120,19 @@ def test_every_shipped_study_loads() -> None:
     evo = load_study("evo-vs-rl")
     assert {r.algorithm for r in evo.runs} == {"a2c", "ppo", "cmaes", "neat"}
     assert {r.budget for r in evo.runs} == {"steps", "clock"}
+
+
+def test_the_mixed_study_compares_a_strategy_an_algorithm_and_both_at_an_equal_budget() -> None:
+    mixed = load_study("mixed")
+    assert len(mixed.runs) == 3 * 2 * 5
+    assert {r.algorithm for r in mixed.runs} == {"cmaes", "ppo"}
+    assert len({r.config["budget_steps"] for r in mixed.runs}) == 1  # one budget for all
+    by_trainer = {r.trainer: r.config for r in mixed.runs}
+    assert by_trainer["edhucat-careful"]["curator"] == "careful"
+    assert by_trainer["edhucat-careful"]["advisor"] is None
+    assert by_trainer["edhucat-edens"]["curator"] == "edens"
+    both = by_trainer["edhucat-follow-edens"]
+    assert (both["curator"], both["advisor"]) == ("follow", "edens")
+    assert both["curator_options"] == {"p": 0.5, "base": "careful"}
+    loops = {(c["regime"], c["stages"], c["branches"]) for c in by_trainer.values()}
+    assert loops == {("edhucat", 5, 3)}  # the same loop for the three

@@ -129,6 +129,8 @@ algorithms = ["ppo", "cmaes"]
         ("edhucat-careful", "{ colour = 'red' }", "colour"),
         ("edhucat-risky", "{ unfair = 2 }", "unfair"),
         ("edens", "{ validation = 0 }", "validation"),
+        ("edhucat-follow-edens", "{ p = 3 }", "follow p 3"),
+        ("edhucat-follow-edens", "{ base = 'human' }", "base 'human'"),
     ],
 )
 def test_curator_options_are_checked_when_the_study_is_read(
@@ -141,6 +143,18 @@ def test_curator_options_are_checked_when_the_study_is_read(
         parse_study(text, "study file 'x.toml'")
     message = str(problem.value)
     assert f"run {trainer}_cmaes_clock_seed-0" in message and named in message
+
+
+def test_an_advisors_options_are_checked_when_the_study_is_read() -> None:
+    trainer = "edhucat-follow-edens"
+    text = STUDY.replace('["direct"]', f'["{trainer}"]').replace('mazes = ["M1_5x5_C1"]', "")
+    parse_study(text)  # follow with its advisor, edens: good
+    bad = text + f'[options."{trainer}"]\nadvisor_options = {{ colour = "red" }}\n'
+    with pytest.raises(StudyError) as problem:
+        parse_study(bad, "study file 'x.toml'")
+    message = str(problem.value)
+    assert f"run {trainer}_cmaes_clock_seed-0: advisor: advisor 'edens'" in message
+    assert "colour" in message
 
 
 @pytest.mark.parametrize(

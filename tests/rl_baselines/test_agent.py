@@ -216,7 +216,7 @@ def test_a_training_checkpoint_loads_and_trains_on(tmp_path: Path) -> None:
     train({"algo": "a2c", "budget_steps": 200, "eval_every": 100, "seed": 1}, tmp_path / "run")
     env = SB3VecEnv(["M1_5x5_U"], "DD", 4, seed=1)
     model = load_sb3_model(
-        tmp_path / "run" / "checkpoints" / "model.zip",
+        tmp_path / "run" / "checkpoints" / "latest" / "model.zip",
         "a2c",
         "DD",
         env=env,

@@ -3,21 +3,32 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
+from amaze.maze import rotations
 from amaze.runs.checkpoint import StateCodec, curriculum_classes, read_checkpoint, write_checkpoint
 from rl_baselines import RLConfigError
 from rl_baselines.cli import main
-from rl_baselines.coevolution import SB3CoevolutionRun
+from rl_baselines.coevolution import RoundEpisodes, SB3CoevolutionRun
 from rl_baselines.train import SB3Run, TrainConfig
+from rl_baselines.vec_env import SB3VecEnv
 
-#: A2C rounds of 5 x 4 = 20 steps on one maze, validated every 2 rounds, checkpoints every round.
-ARGS = ["--algo", "a2c", "--regime", "coevolution", "--budget-steps", "120"]
-ARGS += ["--eval-every", "20", "--no-progress"]
+#: A2C rollouts of 5 x 4 = 20 steps, rounds on one 5 x 5 maze (as many rollouts as its longest
+#: episode may last), validated every 2 rounds, checkpoints every round.
+ARGS = ["--algo", "a2c", "--regime", "coevolution", "--budget-steps", "1200"]
+ARGS += ["--eval-every", "20", "--no-progress", "--target", "M4_5x5_C1"]
+
+
+def _round_steps(rows: list[dict[str, str]]) -> list[int]:
+    steps = [0, *(int(r["steps"]) for r in rows)]
+    return [after - before for before, after in itertools.pairwise(steps)]
 
 
 def _rows(out: Path, name: str) -> list[dict[str, str]]:
@@ -44,37 +55,44 @@ def test_a_coevolution_run_writes_its_folder(finished: Path) -> None:
         assert (finished / name).stat().st_size > 0, name
     assert any((finished / "tensorboard").rglob("events.out.tfevents.*"))
     rows = _rows(finished, "progress.csv")
-    assert [int(r["round"]) for r in rows] == list(range(1, 7))
-    assert [int(r["steps"]) for r in rows] == [20 * k for k in range(1, 7)]
-    assert [r["validation"] != "nan" for r in rows] == [True, False] * 3
+    rounds = len(rows)
+    assert rounds >= 3 and [int(r["round"]) for r in rows] == list(range(1, rounds + 1))
+    # whole rollouts, several a round (enough for an episode of a 5 x 5 maze to end)
+    assert all(steps % 20 == 0 and steps > 20 for steps in _round_steps(rows)[:-1])
+    assert [r["validation"] != "nan" for r in rows] == [k % 2 == 0 for k in range(rounds)]
     summary = json.loads((finished / "summary.json").read_text())
-    assert summary["regime"] == "coevolution" and summary["rounds"] == 6
-    assert summary["env_steps"] == 120 and summary["validation_steps"] > 0
+    assert summary["regime"] == "coevolution" and summary["rounds"] == rounds
+    assert summary["env_steps"] == int(rows[-1]["steps"]) <= 1200
+    assert summary["validation_steps"] > 0
     assert 0 <= summary["unseen_success_rate"] <= 1
     config = json.loads((finished / "config.json").read_text())
     assert config["coevolution"]["batch"] == 1  # n_envs 4: one maze per round
     mazes = _rows(finished, "mazes.csv")
     assert not mazes or list(mazes[0]) == MAZES_CSV_FIELDS
-    assert [p.name for p in (finished / "checkpoints").glob("model-*.zip")] == ["model-6.zip"]
+    models = [p.name for p in (finished / "checkpoints").glob("model-*.zip")]
+    assert models == [f"model-{rounds}.zip"]
 
 
 def test_a_resumed_run_goes_on_with_its_population(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    short = [*ARGS[:5], "60", *ARGS[6:]]  # 3 rounds
+    short = [*ARGS[:5], "600", *ARGS[6:]]
     assert main([*short, "--config", str(_config(tmp_path)), "--out", str(out)]) == 0
-    before = _rows(out, "mazes.csv")
-    # as if killed after round 3's checkpoint, in a run of 6 rounds
+    before, rounds_before = _rows(out, "mazes.csv"), len(_rows(out, "progress.csv"))
+    # as if killed after the last round's checkpoint, in a run of twice the budget
     (out / "summary.json").unlink()
     config = json.loads((out / "config.json").read_text())
-    (out / "config.json").write_text(json.dumps({**config, "budget_steps": 120}))
+    (out / "config.json").write_text(json.dumps({**config, "budget_steps": 1200}))
     assert main(["--resume", str(out), "--no-progress"]) == 0
-    assert [int(r["round"]) for r in _rows(out, "progress.csv")] == list(range(1, 7))
+    rows = _rows(out, "progress.csv")
+    assert len(rows) > rounds_before and [int(r["round"]) for r in rows] == list(
+        range(1, len(rows) + 1)
+    )
     after = _rows(out, "mazes.csv")
     kept = ("id", "maze", "origin", "parent", "birth")
     assert [{k: r[k] for k in kept} for r in after[: len(before)]] == [
         {k: r[k] for k in kept} for r in before
     ]
-    assert json.loads((out / "summary.json").read_text())["rounds"] == 6
+    assert json.loads((out / "summary.json").read_text())["rounds"] == len(rows)
 
 
 def test_a_coevolution_run_on_seconds_alone_stops_once_they_are_spent(tmp_path: Path) -> None:
@@ -127,7 +145,8 @@ def test_a_run_checkpoints_its_first_round_and_never_passes_its_budget(
     assert not (tmp_path / "small").exists()
     # killed right after round 1 (eval_every 1000: no checkpoint due by steps), resumed
     out = tmp_path / "run"
-    argv = [*ARGS[:5], "50", "--eval-every", "1000", "--no-progress", "--no-tensorboard"]
+    argv = [*ARGS[:5], "300", "--eval-every", "1000", "--no-progress", "--no-tensorboard"]
+    argv += ARGS[-2:]
 
     class Killed(Exception):
         pass
@@ -145,14 +164,16 @@ def test_a_run_checkpoints_its_first_round_and_never_passes_its_budget(
     monkeypatch.setattr(SB3CoevolutionRun, "play_round", original)
     assert main(["--resume", str(out), "--no-progress"]) == 0
     rows = _rows(out, "progress.csv")
-    assert [int(r["steps"]) for r in rows] == [20, 40]  # a third rollout would pass 50
+    # round 2 was cut to the whole rollouts the budget still paid, and ended the run on it
+    assert len(rows) == 2 and int(rows[0]["steps"]) % 20 == 0 and int(rows[1]["steps"]) == 300
 
 
 def test_a_checkpoint_of_the_older_layout_resumes(tmp_path: Path) -> None:
     """A version 2 state (no time breakdown) is read and goes on."""
     out = tmp_path / "run"
-    short = [*ARGS[:5], "60", *ARGS[6:]]  # 3 rounds
+    short = [*ARGS[:5], "600", *ARGS[6:]]
     assert main([*short, "--config", str(_config(tmp_path)), "--out", str(out)]) == 0
+    rounds_before = len(_rows(out, "progress.csv"))
     path, state_class = out / "checkpoints" / "state.npz", SB3CoevolutionRun.state_class
     codec = StateCodec([state_class, *curriculum_classes()])
     state = read_checkpoint(path, codec, RLConfigError, state_class)
@@ -161,7 +182,37 @@ def test_a_checkpoint_of_the_older_layout_resumes(tmp_path: Path) -> None:
     write_checkpoint(path, state, codec)
     (out / "summary.json").unlink()
     config = json.loads((out / "config.json").read_text())
-    (out / "config.json").write_text(json.dumps({**config, "budget_steps": 120}))
+    (out / "config.json").write_text(json.dumps({**config, "budget_steps": 1200}))
     assert main(["--resume", str(out), "--no-progress"]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["rounds"] == 6 and summary["time"]["learning"] > 0
+    assert summary["rounds"] > rounds_before and summary["time"]["learning"] > 0
+
+
+def test_a_round_lasts_as_long_as_the_longest_episode_of_its_mazes(tmp_path: Path) -> None:
+    config = TrainConfig.from_dict({"algo": "a2c", "regime": "coevolution", "budget_steps": 100})
+    run = SB3CoevolutionRun(tmp_path / "run", config)
+    run.new_state(None)  # the model; no population needed here
+    env = SB3VecEnv(rotations("M4_5x5_C1"), "DD", 4)
+    deadline = int(np.ceil(env.engine.tables.deadline.max()))
+    assert deadline > 5 and run.round_rollouts(env) == -(-deadline // 5)
+
+
+def test_a_rounds_episodes_score_its_mazes_and_fill_in_for_those_without() -> None:
+    """PLR's way: the model's own (stochastic) episodes of the round, not one greedy episode."""
+    episodes = RoundEpisodes(4)
+    ended = [
+        {"success": True, "normalized_reward": 1.0},
+        {},
+        {"success": False, "normalized_reward": -3.0},
+        {},
+    ]
+    for infos in (ended, [{}, {}, {"success": True, "normalized_reward": 0.0}, {}]):
+        episodes.locals = {"infos": infos}
+        assert episodes._on_step()
+    greedy = SimpleNamespace(  # the deterministic episodes, as EpisodeResults gives them
+        success=np.array([False, True, False, False]),
+        normalized_reward=np.array([-9.0, 0.5, -9.0, -7.0]),
+    )
+    success, reward = episodes.scores(greedy)
+    np.testing.assert_array_equal(success, [[1.0, 1.0, 0.5, 0.0]])
+    np.testing.assert_array_equal(reward, [[1.0, 0.5, -1.5, -7.0]])

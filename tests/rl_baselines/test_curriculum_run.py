@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
+import amaze.runs.curriculum as curriculum_module
 from rl_baselines.cli import main
 from rl_baselines.curriculum import SB3CurriculumRun
-from rl_baselines.learner import SB3Learner
 from rl_baselines.train import SB3Run, TrainConfig, train
 
 #: Two stages of two branches; A2C's default rollout (20 steps) fits the 150-step allowance.
@@ -173,19 +173,21 @@ class _Killed(Exception):
 
 
 def _killing_save(at: int):
-    """``SB3Learner.save`` that raises :class:`_Killed` after stage 1's ``at``-th checkpoint."""
-    save = SB3Learner.save
+    """The curriculum's ``write_folder`` raising :class:`_Killed` once stage 1's ``at``-th
+    checkpoint is in place (as a kill right after it would)."""
+    write = curriculum_module.write_folder
     saves = 0
 
-    def killing_save(learner: SB3Learner, folder: Path) -> None:
+    def killing_write(folder: Path, fill) -> Path:
         nonlocal saves
-        save(learner, folder)
+        written = write(folder, fill)
         if Path(folder).name == "checkpoint" and Path(folder).parent.parent.name == "stage-1":
             saves += 1
             if saves == at:
                 raise _Killed
+        return written
 
-    return killing_save
+    return killing_write
 
 
 def test_resume_after_a_kill_mid_stage_continues_the_branch(
@@ -193,7 +195,7 @@ def test_resume_after_a_kill_mid_stage_continues_the_branch(
 ) -> None:
     out = tmp_path / "run"
     # killed at the 3rd checkpoint of stage 1: at 80 of the branch's 220 steps
-    monkeypatch.setattr(SB3Learner, "save", _killing_save(3))
+    monkeypatch.setattr(curriculum_module, "write_folder", _killing_save(3))
     with pytest.raises(_Killed):
         main([*A2C, "--seed", "2", "--out", str(out)])
     monkeypatch.undo()
@@ -221,12 +223,12 @@ def test_resume_mid_stage_of_a_seconds_run_continues_the_session(
     out = tmp_path / "run"
     argv = [*A2C[: A2C.index("--budget-steps")], "--budget-seconds", "3"]
     argv += ["--eval-every", "40", "--no-progress", "--no-tensorboard", "--seed", "4"]
-    save = SB3Learner.save
+    write = curriculum_module.write_folder
     # killed at the 2nd checkpoint of stage 1: 40 steps into its first branch
-    monkeypatch.setattr(SB3Learner, "save", _killing_save(2))
+    monkeypatch.setattr(curriculum_module, "write_folder", _killing_save(2))
     with pytest.raises(_Killed):
         main([*argv, "--out", str(out)])
-    monkeypatch.setattr(SB3Learner, "save", save)
+    monkeypatch.setattr(curriculum_module, "write_folder", write)
     checkpoint = out / "stages/stage-1/branch-0/checkpoint"
     session = json.loads((checkpoint / "learner.json").read_text())["session"]
     first = json.loads((out / "stages/stage-0/branch-0/result.json").read_text())

@@ -34,8 +34,8 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-STATE = "checkpoints/state.json"
-MODEL = "checkpoints/model.zip"
+STATE = "checkpoints/latest/state.json"
+MODEL = "checkpoints/latest/model.zip"
 
 CASES = {
     "config missing": ("config.json", missing, "holds no run"),

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+import rl_baselines.direct as direct_module
 import rl_baselines.train as train_module
 from amaze.errors import UsageError
 from rl_baselines import RLConfigError
@@ -120,7 +121,7 @@ def test_run_folder_and_refusal_to_overwrite(tmp_path: Path) -> None:
     assert result.env_steps == 400
     for name in ("config.json", "progress.csv", "summary.json", "agent.zip", "agent.json"):
         assert (out / name).exists(), name
-    assert (out / "checkpoints" / "model.zip").exists()
+    assert (out / "checkpoints" / "latest" / "model.zip").exists()
     assert len(list((out / "trajectories").glob("*.png"))) == 4
     summary = json.loads((out / "summary.json").read_text())
     assert SUMMARY_KEYS <= set(summary) and summary["env_steps"] == 400
@@ -135,7 +136,7 @@ def test_kill_and_resume_counts_the_budget_once(tmp_path: Path) -> None:
     command = [sys.executable, "-m", "rl_baselines.cli", "--algo", "a2c", "--seed", "0"]
     args = ["--budget-steps", str(budget), "--eval-every", "500", "--out", str(out)]
     process = subprocess.Popen([*command, *args], stderr=subprocess.PIPE)
-    state = out / "checkpoints" / "state.json"
+    state = out / "checkpoints" / "latest" / "state.json"
     deadline = time.monotonic() + 60
     killed_at = None
     try:
@@ -192,7 +193,7 @@ def _write(path: Path, data: dict) -> str:
 def test_early_stop_when_every_evaluation_episode_is_optimal(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(train_module, "OPTIMAL", -1e9)  # any episode counts as optimal
+    monkeypatch.setattr(direct_module, "OPTIMAL", -1e9)  # any episode counts as optimal
     config = {"algo": "a2c", "budget_steps": 4000, "eval_every": 100, "n_envs": 4}
     result = train(config, tmp_path / "run")
     assert result.summary["converged"] and result.env_steps < 100
@@ -266,7 +267,7 @@ def test_a_direct_run_on_seconds_alone_stops_at_its_budget(tmp_path: Path) -> No
     summary = result.summary
     assert summary["budget_seconds"] == 3.0 and summary["budget_steps"] is None
     assert not summary["converged"] and summary["env_steps"] > 0
-    state = json.loads((out / "checkpoints" / "state.json").read_text())
+    state = json.loads((out / "checkpoints" / "latest" / "state.json").read_text())
     # stopped by the clock: the training seconds reached the budget, and not long after
     assert 3 <= state["seconds"] < 3 + SLACK
     assert 3 <= summary["seconds"] < 3 + SLACK

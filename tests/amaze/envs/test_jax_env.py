@@ -6,9 +6,11 @@ Episodes themselves are compared with the batch engine's in
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from functools import partial
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -269,3 +271,14 @@ def test_spaces_without_gymnax():
     assert actions.n == 4 and bool(actions.contains(actions.sample(KEY)))
     assert not bool(actions.contains(jnp.int32(4)))
     assert MazeEnv("DD").observation_space().shape == (8,)
+
+
+def test_the_documented_random_rollout_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    """The PureJaxRL-style rollout of ``docs/jax.md`` runs as written and ends episodes."""
+    page = (Path(__file__).resolve().parents[3] / "docs" / "jax.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", page, re.DOTALL)
+    rollout = next(block for block in blocks if "jax.lax.scan" in block)
+    exec(compile(rollout, "docs/jax.md", "exec"), {})
+    printed = capsys.readouterr().out
+    ended = int(re.match(r"(\d+) episodes ended in 500 steps of 1024 environments", printed)[1])
+    assert ended > 1024  # every environment ends at least one episode (5x5 mazes end fast)

@@ -210,9 +210,9 @@ def corner(maze: Maze) -> tuple[bool, bool]:
 CASES = [
     # robot, base mazes (x 4 rotations), steps, deadline factor, seed of the maze strings
     ("DD", 200, 1500, 4.0, 1),
-    ("H5", 100, 600, 2.5, 2),
-    ("H11", 100, 600, 1.0, 3),
-    ("H15", 100, 800, 4.0, 4),
+    ("H5", 200, 600, 2.5, 2),
+    ("H11", 200, 600, 1.0, 3),
+    ("H15", 200, 800, 4.0, 4),
 ]
 
 

@@ -200,6 +200,6 @@ def test_whatever_a_curator_raises_ends_the_run_with_an_error_naming_it(
             raise problem
         return _Curator(fails, problem)
 
-    monkeypatch.setattr("amaze.runs.curriculum.make_curator", make)
+    monkeypatch.setattr("amaze.runs.decisions.make_curator", make)
     with pytest.raises(AmazeError, match=f"curator 'random' failed {words}"):
         ToyRun.fresh(CONFIG, tmp_path / "run")

@@ -1,0 +1,182 @@
+"""SB3's ``ActorCriticPolicy`` for AMaze robots in JAX: parameters, initialisation, forward.
+
+The architecture is the one :func:`rl_baselines.learner.new_sb3_model` builds:
+
+* ``DD`` (``MlpPolicy``): the 8 floats go through SB3's ``FlattenExtractor`` (no
+  parameters), then two separate MLPs (``MlpExtractor``, SB3's default
+  ``net_arch = dict(pi=[64, 64], vf=[64, 64])``, Tanh after each layer), the
+  policy's ending in ``action_net`` (4 logits) and the value's in ``value_net``;
+* hybrid robots (``CnnPolicy`` with :class:`rl_baselines.networks.SmallCNN`): the
+  ``(1, v, v)`` uint8 image divided by 255 (SB3's ``preprocess_obs`` with
+  ``normalize_images``), then 3x3 convolution (padding 1) to 16 channels, ReLU,
+  3x3 convolution to 32, ReLU, 2x2 max-pool (floor), flatten (channel-major, as
+  torch), linear to ``features_dim`` (64), ReLU; these features are shared by
+  the policy and value MLPs (``share_features_extractor=True``).
+
+**Initialisation** (``ActorCriticPolicy._build`` with ``ortho_init=True`` and
+``BasePolicy.init_weights``): every ``nn.Linear`` and ``nn.Conv2d`` weight is
+orthogonal (torch's ``orthogonal_``: the weight as a ``(out, in * k * k)`` matrix
+with orthonormal rows or columns) with gain sqrt(2) in the features extractor
+(the CNN's two convolutions and its linear layer) and in the MLPs, 0.01 in
+``action_net`` and 1 in ``value_net``; every bias is 0. The draws are numpy's
+(seeded by the JAX key), so the same distribution as torch's, not the same
+numbers.
+
+**Parameters** (:data:`Params`) are a dict keyed by SB3's module names, each
+``{"weight": ..., "bias": ...}`` in torch's layout, so that a parameter is
+``params[module][kind]`` = SB3's ``state_dict()[f"{module}.{kind}"]`` with no
+transposition:
+
+=================================  ===================================
+key (SB3 ``state_dict`` prefix)    weight, bias shapes (DD / H15)
+=================================  ===================================
+``features_extractor.cnn.0``       ``(16, 1, 3, 3)``, ``(16,)``
+``features_extractor.cnn.2``       ``(32, 16, 3, 3)``, ``(32,)``
+``features_extractor.linear.0``    ``(64, 1568)``, ``(64,)``
+``mlp_extractor.policy_net.0``     ``(64, 8 | 64)``, ``(64,)``
+``mlp_extractor.policy_net.2``     ``(64, 64)``, ``(64,)``
+``mlp_extractor.value_net.0``      ``(64, 8 | 64)``, ``(64,)``
+``mlp_extractor.value_net.2``      ``(64, 64)``, ``(64,)``
+``action_net``                     ``(4, 64)``, ``(4,)``
+``value_net``                      ``(1, 64)``, ``(1,)``
+=================================  ===================================
+
+(the CNN's entries for hybrid robots only; SB3's state_dict repeats them as
+``pi_features_extractor.*`` and ``vf_features_extractor.*``, the same tensors).
+MLP layers are numbered ``0, 2, 4...`` as in SB3's ``nn.Sequential`` (Linear,
+Tanh, Linear, ...).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from rl_baselines.jax.spec import CONV1, CONV2, LINEAR, N_ACTIONS, PolicySpec
+
+__all__ = [
+    "N_ACTIONS",
+    "Params",
+    "PolicySpec",
+    "apply",
+    "as_numpy",
+    "deterministic_actions",
+    "entropy",
+    "init_params",
+    "log_probabilities",
+    "predict_values",
+]
+
+Params = dict[str, dict[str, jax.Array]]
+
+
+def _orthogonal(rng: np.random.Generator, shape: tuple[int, ...], gain: float) -> np.ndarray:
+    """torch's ``orthogonal_`` on a weight of ``shape`` (``(out, in, ...)``), numpy's draws.
+
+    The weight as an ``(out, prod(rest))`` matrix: QR of a standard normal matrix
+    (transposed when it is wide), columns signed by ``R``'s diagonal, times ``gain``.
+    """
+    rows = shape[0]
+    cols = int(np.prod(shape[1:]))
+    flat = rng.standard_normal((max(rows, cols), min(rows, cols)))
+    q, r = np.linalg.qr(flat)
+    q = q * np.sign(np.diag(r))
+    if rows < cols:
+        q = q.T
+    return (gain * q).reshape(shape).astype(np.float32)
+
+
+def init_params(spec: PolicySpec, key: jax.Array) -> Params:
+    """Fresh parameters: SB3's orthogonal initialisation (see the module docstring).
+
+    The draws are numpy's, from a generator seeded by ``key``'s data, and the QR
+    decompositions numpy's, on the host: in JAX, each QR compiles apart
+    (seconds per policy) for a few milliseconds of work.
+    """
+    seed = np.asarray(jax.random.key_data(key)).astype(np.uint32).ravel().tolist()
+    rng = np.random.default_rng(np.random.SeedSequence(seed))
+    return {
+        module: {
+            "weight": jnp.asarray(_orthogonal(rng, shape, spec.gain(module))),
+            "bias": jnp.zeros((shape[0],), jnp.float32),
+        }
+        for module, shape in spec.layer_shapes().items()
+    }
+
+
+def _linear(layer: dict[str, jax.Array], x: jax.Array) -> jax.Array:
+    """torch's ``nn.Linear``: ``x @ weight.T + bias``."""
+    return x @ layer["weight"].T + layer["bias"]
+
+
+def _conv(layer: dict[str, jax.Array], x: jax.Array) -> jax.Array:
+    """torch's ``nn.Conv2d(kernel_size=3, padding=1)`` on NCHW images."""
+    y = jax.lax.conv_general_dilated(
+        x,
+        layer["weight"],
+        window_strides=(1, 1),
+        padding=((1, 1), (1, 1)),
+        dimension_numbers=("NCHW", "OIHW", "NCHW"),
+    )
+    return y + layer["bias"][None, :, None, None]
+
+
+def _features(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
+    """SB3's ``extract_features``: the floats as they are, or SmallCNN on images / 255."""
+    if not spec.images:
+        return obs.astype(jnp.float32)
+    x = obs.astype(jnp.float32) / 255.0
+    x = jax.nn.relu(_conv(params[CONV1], x))
+    x = jax.nn.relu(_conv(params[CONV2], x))
+    x = jax.lax.reduce_window(x, -jnp.inf, jax.lax.max, (1, 1, 2, 2), (1, 1, 2, 2), "VALID")
+    x = x.reshape(x.shape[0], -1)
+    return jax.nn.relu(_linear(params[LINEAR], x))
+
+
+def _mlp(params: Params, net: str, layers: int, x: jax.Array) -> jax.Array:
+    """One of ``MlpExtractor``'s nets: Linear and Tanh, ``layers`` times."""
+    for i in range(layers):
+        x = jnp.tanh(_linear(params[f"mlp_extractor.{net}.{2 * i}"], x))
+    return x
+
+
+def apply(spec: PolicySpec, params: Params, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``(logits (n, 4), values (n,))`` of a batch of observations (SB3's ``forward``)."""
+    features = _features(spec, params, obs)
+    latent_pi = _mlp(params, "policy_net", len(spec.net_pi), features)
+    latent_vf = _mlp(params, "value_net", len(spec.net_vf), features)
+    logits = _linear(params["action_net"], latent_pi)
+    values = _linear(params["value_net"], latent_vf)[:, 0]
+    return logits, values
+
+
+def predict_values(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
+    """``(n,)`` values alone (SB3's ``predict_values``), without the policy's MLP."""
+    features = _features(spec, params, obs)
+    latent_vf = _mlp(params, "value_net", len(spec.net_vf), features)
+    return _linear(params["value_net"], latent_vf)[:, 0]
+
+
+def log_probabilities(logits: jax.Array) -> jax.Array:
+    """torch's ``Categorical(logits=...)`` normalised logits: ``logits - logsumexp``."""
+    return logits - jax.nn.logsumexp(logits, axis=-1, keepdims=True)
+
+
+def entropy(log_probs: jax.Array) -> jax.Array:
+    """torch's ``Categorical.entropy`` from normalised logits: ``-sum(softmax(l) * l)``."""
+    return -jnp.sum(log_probs * jax.nn.softmax(log_probs, axis=-1), axis=-1)
+
+
+def deterministic_actions(logits: jax.Array) -> jax.Array:
+    """SB3's ``CategoricalDistribution.mode``: ``argmax`` of the probabilities (first on ties)."""
+    return jnp.argmax(jax.nn.softmax(logits, axis=-1), axis=-1)
+
+
+def as_numpy(params: Any) -> dict[str, dict[str, np.ndarray]]:
+    """Parameters as float32 numpy arrays (host copies)."""
+    return {
+        m: {k: np.asarray(v, np.float32) for k, v in layer.items()} for m, layer in params.items()
+    }

@@ -1,0 +1,1 @@
+"""Tests of rl_baselines.jax: A2C and PPO in JAX against SB3."""

@@ -82,8 +82,11 @@ class Replicate:
         return self.out / CONFIG_FILE
 
 
-def strip_options(argv: Sequence[str], options: Sequence[str]) -> list[str]:
-    """``argv`` without ``options`` and their values (given as ``--x v`` or ``--x=v``)."""
+def strip_options(
+    argv: Sequence[str], options: Sequence[str], flags: Sequence[str] = ()
+) -> list[str]:
+    """``argv`` without ``options`` and their values (given as ``--x v`` or ``--x=v``)
+    and without the ``flags`` (options that take no value)."""
     kept: list[str] = []
     skip = False
     for token in argv:
@@ -91,6 +94,8 @@ def strip_options(argv: Sequence[str], options: Sequence[str]) -> list[str]:
             skip = False
             continue
         name = token.split("=", 1)[0]
+        if name in flags:
+            continue
         if name in options:
             skip = "=" not in token
             continue
@@ -114,8 +119,8 @@ def plan_replicates(
             f"--seed {first_seed} with --replicates {count} reaches seed"
             f" {first_seed + count - 1}, above {MAX_SEED}"
         )
-    mine = ("--replicates", "--workers", "--seed", "--out", "--progress", "--no-progress")
-    base = strip_options(argv, (*mine, *NOT_PASSED_ON))
+    mine = ("--replicates", "--workers", "--seed", "--out")
+    base = strip_options(argv, (*mine, *NOT_PASSED_ON), flags=("--progress", "--no-progress"))
     plan = []
     for seed in range(first_seed, first_seed + count):
         folder = Path(out) / f"seed-{seed}"

@@ -21,6 +21,15 @@ from amaze.runs.replicates import (
 from tests.amaze.runs.toy_curriculum import ToyRun
 
 
+def test_a_flag_before_an_option_keeps_that_option() -> None:
+    """``--no-progress`` takes no value: the ``--out`` after it is not swallowed with it."""
+    argv = ["--algo", "ppo", "--replicates", "3", "--no-progress", "--out", "runs/r"]
+    plan = plan_replicates("rl_baselines.cli", argv, 0, 3, "runs/r")
+    for replicate in plan:
+        tail = replicate.command[3:]
+        assert tail == ["--algo", "ppo", "--seed", str(replicate.seed), "--out", str(replicate.out)]
+
+
 def test_strip_options_removes_values_in_both_forms() -> None:
     argv = ["--a", "1", "--seed=3", "--out", "x", "--keep", "y"]
     assert strip_options(argv, ("--seed", "--out")) == ["--a", "1", "--keep", "y"]

@@ -157,7 +157,7 @@ def test_kill_and_resume_counts_the_budget_once(tmp_path: Path) -> None:
         [sys.executable, "-m", "rl_baselines.cli", "--resume", str(out)],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=600,  # a safety net for a hung process (about 30 s on a busy 2-core machine)
     )
     assert resumed.returncode == 0, resumed.stderr
     summary = json.loads((out / "summary.json").read_text())

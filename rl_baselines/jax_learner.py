@@ -114,14 +114,7 @@ class JaxLearner(Sessions):
             session["steps"] += count * self.rollout
             if progress is not None:
                 progress(int(session["steps"]))
-        outcome = TrainingOutcome(
-            env_steps=int(session["steps"]),
-            seconds=self._seconds(),
-            converged=bool(session["converged"]),
-        )
-        self.session = None
-        self._checkpoint = None
-        return outcome
+        return self._close_session()
 
     def branch(self, seed: int) -> JaxLearner:
         """An independent copy (parameters, optimizer state) whose sessions draw from ``seed``."""

@@ -137,6 +137,7 @@ class Sessions:
 
     session: dict[str, Any] | None
     _clock: tuple[float, float]
+    _checkpoint: Callable[[], None] | None
 
     def _open_session(
         self, mazes: list[str], budget_steps: int | None, budget_seconds: float | None
@@ -160,6 +161,19 @@ class Sessions:
             }
         self._clock = (time.monotonic(), float(session["seconds"]))
         return session
+
+    def _close_session(self) -> TrainingOutcome:
+        """The session's outcome; the learner is then between sessions."""
+        session = self.session
+        assert session is not None
+        outcome = TrainingOutcome(
+            env_steps=int(session["steps"]),
+            seconds=self._seconds(),
+            converged=bool(session["converged"]),
+        )
+        self.session = None
+        self._checkpoint = None
+        return outcome
 
     def _seconds(self) -> float:
         """Seconds of the session in progress, over every resumed part of it."""
@@ -278,14 +292,7 @@ class SB3Learner(Sessions):
                 tb_log_name=self.log_name,
             )
             session["steps"] = callback.steps_before + int(model.num_timesteps) - start
-        outcome = TrainingOutcome(
-            env_steps=int(session["steps"]),
-            seconds=self._seconds(),
-            converged=bool(session["converged"]),
-        )
-        self.session = None
-        self._checkpoint = None
-        return outcome
+        return self._close_session()
 
     def branch(self, seed: int) -> SB3Learner:
         """An independent copy (weights, optimiser state) whose sessions draw from ``seed``."""

@@ -3,11 +3,11 @@
 A check run by hand, not a test: the project does not depend on rliable
 (its bootstrap draws from numpy's global generator, and it pins ``arch``,
 which breaks with pandas 3). Run it from a scratch environment that has
-rliable, with the project on the path::
+rliable, with the project on the path (from the project's root)::
 
     python3.11 -m venv /tmp/rlcheck
     /tmp/rlcheck/bin/pip install rliable "pandas<3" scipy numpy
-    PYTHONPATH=/work/main /tmp/rlcheck/bin/python tools/check_intervals_against_rliable.py
+    PYTHONPATH=. /tmp/rlcheck/bin/python tools/check_intervals_against_rliable.py
 
 What must agree, and how closely:
 

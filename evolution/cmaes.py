@@ -49,7 +49,7 @@ __all__ = ["DEFAULT_NETWORK", "CMAESAlgorithm", "CMAESConfig", "default_popsize"
 #: The default network: a linear policy (see :class:`CMAESConfig`).
 DEFAULT_NETWORK: dict[str, Any] = {"hidden": [], "activation": "tanh"}
 #: Network keys a CMA-ES configuration may set (the robot comes from the run).
-_NETWORK_KEYS = ("hidden", "activation", "pool")
+_NETWORK_KEYS = ("hidden", "activation", "pool", "symmetry")
 #: cma options the algorithm sets itself (they may not be given in ``cma_options``).
 _RESERVED_OPTIONS = frozenset(
     "seed popsize CMA_diagonal randn verbose verb_log verb_disp verb_filenameprefix"
@@ -115,7 +115,9 @@ class CMAESConfig:
     """Parameters of CMA-ES over a fixed network.
 
     * ``network``: the :class:`~evolution.networks.NetworkSpec` fields but the
-      robot (``hidden``, ``activation``, ``pool``). Default: a **linear
+      robot (``hidden``, ``activation``, ``pool``, ``symmetry``: ``"rotations"``
+      shares one network across the four directions, see
+      :mod:`evolution.networks`). Default: a **linear
       policy** (``hidden: []``, 36 parameters for ``DD``). On the trivial and
       simple columns of the standard suite (6 mazes x 4 rotations, ``DD``,
       paper reward), the champion reached success 1.0 after a median of 76
@@ -228,15 +230,26 @@ def _check_network(network: Any) -> dict[str, Any]:
     hidden = network.get("hidden", DEFAULT_NETWORK["hidden"])
     activation = network.get("activation", DEFAULT_NETWORK["activation"])
     pool = network.get("pool")
+    symmetry = network.get("symmetry", "none")
     try:
-        spec = NetworkSpec("DD", tuple(hidden) if isinstance(hidden, list) else hidden, activation)
+        spec = NetworkSpec(
+            "DD",
+            tuple(hidden) if isinstance(hidden, list) else hidden,
+            activation,
+            symmetry=symmetry,
+        )
     except EvolutionConfigError as error:
         raise EvolutionConfigError(f"CMA-ES config 'network': {error}") from None
     if pool is not None:  # None: the default pooling of image robots
         pool = check_integer(
             "CMA-ES config 'network': pool", pool, minimum=1, error=EvolutionConfigError
         )
-    return {"hidden": list(spec.hidden), "activation": spec.activation, "pool": pool}
+    return {
+        "hidden": list(spec.hidden),
+        "activation": spec.activation,
+        "pool": pool,
+        "symmetry": spec.symmetry,
+    }
 
 
 def _check_cma_options(options: Any) -> dict[str, Any]:
@@ -291,6 +304,7 @@ class CMAESAlgorithm:
             hidden=tuple(network["hidden"]),
             activation=network["activation"],
             pool=network["pool"],
+            symmetry=network["symmetry"],
         )
         self._rng = np.random.default_rng(self.seed)
         self._np_state = np.random.RandomState(self.seed).get_state()

@@ -27,17 +27,33 @@ layers only; ``hidden = ()`` is a linear policy. Outputs: 4 logits for
 discrete actions, the action being the first maximal one (E, N, W, S order);
 2 for continuous actions, squashed by tanh into accelerations in [-1, 1].
 
+**Symmetry.** Observations and actions are in the maze's frame (E, N, W, S),
+and the task looks the same from every side: a clue pointing north calls for
+the move north exactly as one pointing east calls for the move east. With
+``symmetry = "rotations"`` (discrete actions only) the network scores one
+direction at a time: the logit of direction ``d`` is the network's single
+output on the inputs turned a quarter-turn ``d`` times clockwise, so that side
+``d`` lies east (the 8 inputs of DD robots shifted cyclically, both the walls
+and the signs; the pooled grid of image robots turned with ``np.rot90``). One
+set of weights thus serves the four directions: the policy is equivariant by
+construction (turn the cell and the action turns with it), has about a quarter
+of the parameters, and learns from a clue seen on one side what it means on
+all. With the symmetric block edges of the default pooling (every ``v`` with
+``pool = 5``), turning the pooled grid is pooling the turned image.
+
 **Parameter layout.** For each layer in order, its weights ``(d_in, d_out)``
 row-major, then its biases ``(d_out,)`` (:meth:`NetworkSpec.unflatten`).
 Parameter counts (weights + biases):
 
-=========  =======  =========  ===========  ================
-robot      inputs   linear     hidden (16)  hidden (32, 32)
-=========  =======  =========  ===========  ================
-DD         8        36         212          1 476
-CD15/CD11  25       104        484          2 020
-CC15/CC11  25       52         450          1 954
-=========  =======  =========  ===========  ================
+=================  =======  =========  ===========  ================
+robot              inputs   linear     hidden (16)  hidden (32, 32)
+=================  =======  =========  ===========  ================
+DD                 8        36         212          1 476
+DD, rotations      8        9          161          1 377
+CD15/CD11          25       104        484          2 020
+CD15, rotations    25       26         433          1 921
+CC15/CC11          25       52         450          1 954
+=================  =======  =========  ===========  ================
 
 **Speed.** The forward pass is a numba kernel working on blocks of up to 64
 agents side by side (the SIMD axis): agents of one individual, or, when a
@@ -68,12 +84,15 @@ from evolution import EvolutionConfigError
 __all__ = [
     "ACTIVATIONS",
     "DEFAULT_POOL",
+    "SYMMETRIES",
     "NetworkPopulation",
     "NetworkSpec",
 ]
 
 #: Hidden-layer activations.
 ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
+#: Weight sharing across directions (see the module docstring, "Symmetry").
+SYMMETRIES: tuple[str, ...] = ("none", "rotations")
 #: Default side of the pooled grid of image robots.
 DEFAULT_POOL = 5
 #: Inputs of discrete-input robots, actions of discrete-output robots, accelerations.
@@ -105,13 +124,16 @@ class NetworkSpec:
 
     ``robot`` is stored as its canonical string (``DD``, ``CD15``, ``CC11``);
     ``pool`` is the side of the pooled image grid, ``None`` for discrete-input
-    robots (image robots default to :data:`DEFAULT_POOL`).
+    robots (image robots default to :data:`DEFAULT_POOL`); ``symmetry`` is
+    one of :data:`SYMMETRIES` (``"rotations"``: one network scores each
+    direction, for discrete actions).
     """
 
     robot: str = "DD"
     hidden: tuple[int, ...] = ()
     activation: str = "tanh"
     pool: int | None = None
+    symmetry: str = "none"
 
     def __post_init__(self) -> None:
         try:
@@ -148,6 +170,15 @@ class NetworkSpec:
                 "pool", pool, minimum=1, maximum=int(robot.vision), error=EvolutionConfigError
             )
             object.__setattr__(self, "pool", pool)
+        if self.symmetry not in SYMMETRIES:
+            raise EvolutionConfigError(
+                f"symmetry {self.symmetry!r} is not one of {', '.join(SYMMETRIES)}"
+            )
+        if self.symmetry == "rotations" and not robot.discrete_outputs:
+            raise EvolutionConfigError(
+                f"symmetry 'rotations' needs discrete actions: robot {robot} accelerates"
+                " (give symmetry 'none', or a DD or H robot)"
+            )
 
     # -- description ----------------------------------------------------------
 
@@ -167,9 +198,14 @@ class NetworkSpec:
         return N_DISCRETE_ACTIONS if self.robot_info.discrete_outputs else N_CONTINUOUS_OUTPUTS
 
     @property
+    def copies(self) -> int:
+        """Times the layers run per observation: 4 with rotations (one per direction), else 1."""
+        return 4 if self.symmetry == "rotations" else 1
+
+    @property
     def layer_sizes(self) -> tuple[int, ...]:
-        """``(n_inputs, *hidden, n_outputs)``."""
-        return (self.n_inputs, *self.hidden, self.n_outputs)
+        """``(n_inputs, *hidden, last)``: ``last`` is 1 with rotations, else ``n_outputs``."""
+        return (self.n_inputs, *self.hidden, 1 if self.copies > 1 else self.n_outputs)
 
     @property
     def layer_shapes(self) -> tuple[tuple[int, int], ...]:
@@ -191,6 +227,7 @@ class NetworkSpec:
             "hidden": list(self.hidden),
             "activation": self.activation,
             "pool": self.pool,
+            "symmetry": self.symmetry,
         }
 
     @classmethod
@@ -205,7 +242,7 @@ class NetworkSpec:
         kind = data.pop("type", "mlp")
         if kind != "mlp":
             raise EvolutionConfigError(f"network type {kind!r} is not 'mlp'")
-        unknown = sorted(set(data) - {"robot", "hidden", "activation", "pool"})
+        unknown = sorted(set(data) - {"robot", "hidden", "activation", "pool", "symmetry"})
         if unknown:
             raise EvolutionConfigError(f"unknown network spec key(s): {', '.join(unknown)}")
         if "robot" not in data:
@@ -218,6 +255,7 @@ class NetworkSpec:
             hidden=hidden,
             activation=data.get("activation", "tanh"),
             pool=data.get("pool"),
+            symmetry=data.get("symmetry", "none"),
         )
 
     # -- parameters -----------------------------------------------------------
@@ -272,6 +310,20 @@ class NetworkSpec:
                 block = images[:, edges[r] : edges[r + 1], edges[c] : edges[c + 1]]
                 out[:, r, c] = block.mean(axis=(1, 2)) / 255.0
         return out.reshape(n, -1).astype(np.float32)
+
+    def rotation_index(self) -> np.ndarray:
+        """int64 ``(4, n_inputs)``: row ``d`` gathers the inputs turned so that side ``d`` is east.
+
+        ``inputs[:, index[d]]`` are the inputs seen after turning the cell ``d``
+        quarter-turns clockwise (E, N, W, S order of ``d``): the 4 wall and 4
+        sign values of DD robots shifted cyclically, the pooled grid of image
+        robots turned by ``np.rot90(grid, -d)`` (row 0 is north).
+        """
+        if self.pool is None:
+            sides = np.array([[(d + j) % 4 for j in range(4)] for d in range(4)], dtype=np.int64)
+            return np.concatenate([sides, sides + 4], axis=1)
+        grid = np.arange(self.pool * self.pool, dtype=np.int64).reshape(self.pool, self.pool)
+        return np.stack([np.rot90(grid, -d).ravel() for d in range(4)])
 
     def population(self, params: np.ndarray, *, parallel: bool | None = None) -> NetworkPopulation:
         """The population policy of ``params`` (``(P, n_params)``, one row per individual)."""
@@ -672,6 +724,9 @@ class NetworkPopulation:
         self._params_t = np.ascontiguousarray(self.params.T)
         self._n_inputs = spec.n_inputs
         self._n_outputs = spec.n_outputs
+        # with rotations every agent is ``copies`` rows of the kernel (one per direction)
+        self._copies = spec.copies
+        self._turns = spec.rotation_index() if self._copies > 1 else None
         self._n_agents = -1
         self._active: np.ndarray | None = None
         self._dirty = True
@@ -720,7 +775,7 @@ class NetworkPopulation:
     def reset(self, n_agents: int) -> None:
         """Start a run of ``n_agents`` agents (``M = n_agents // P`` each); all agents act."""
         self._episodes_per_individual(int(n_agents))
-        self._start(int(n_agents))
+        self._start(int(n_agents) * self._copies)
 
     def _start(self, n_agents: int) -> None:
         self._n_agents = n_agents
@@ -733,7 +788,10 @@ class NetworkPopulation:
         Once every agent is retired (the end of a run), all act again.
         """
         if self._active is not None:
-            self._active[np.asarray(agents, dtype=np.int64)] = False
+            agents = np.asarray(agents, dtype=np.int64)
+            if self._copies > 1:  # the kernel rows of an agent: one per direction
+                agents = (agents[:, None] * self._copies + np.arange(self._copies)).ravel()
+            self._active[agents] = False
             self._dirty = True
             if not self._active.any():
                 self._n_agents = -1
@@ -788,10 +846,11 @@ class NetworkPopulation:
         observations = np.asarray(observations)
         n = int(observations.shape[0]) if observations.ndim else 0
         m = self._episodes_per_individual(n)
+        copies = self._copies
         if all_rows:
             saved = (self._n_agents, self._active, self._dirty)
-            self._start(n)
-        by_episode, rows, blocks = self._plan(n, m)
+            self._start(n * copies)
+        by_episode, rows, blocks = self._plan(n * copies, m * copies)
         if self._vision is None:
             if observations.shape[1:] != (N_DISCRETE_INPUTS,):
                 raise EvolutionConfigError(
@@ -805,8 +864,18 @@ class NetworkPopulation:
                     f"expected {v}x{v} images for robot {self.robot}, got {observations.shape}"
                 )
             images = np.ascontiguousarray(observations.reshape(n, v, v))
-            x = np.empty((n, self._n_inputs), dtype=np.float32)
-            _pool(images, rows, self._edges, self._scale, x)
+            x = (np.zeros if copies > 1 else np.empty)((n, self._n_inputs), dtype=np.float32)
+            _pool(
+                images,
+                rows if copies == 1 else np.unique(rows // copies),
+                self._edges,
+                self._scale,
+                x,
+            )
+        if copies > 1:
+            return self._run_turned(
+                x, by_episode, m, rows, blocks, all_rows, saved if all_rows else None
+            )
         values = np.empty((n, self._n_outputs), dtype=np.float32)
         if self._mode == _MODE_DISCRETE:
             actions = np.zeros(n, dtype=np.int64)
@@ -836,6 +905,50 @@ class NetworkPopulation:
         if all_rows:
             self._n_agents, self._active, self._dirty = saved
         return values, actions
+
+    def _run_turned(
+        self,
+        x: np.ndarray,
+        by_episode: bool,
+        m: int,
+        rows: np.ndarray,
+        blocks: np.ndarray,
+        all_rows: bool,
+        saved: tuple[Any, ...] | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """A symmetric network's logits and actions: the layers score each direction's turn.
+
+        Kernel row ``4 k + d`` is agent ``k``'s inputs turned so that side ``d``
+        is east; its single output is the logit of moving to ``d``. The action
+        is the first maximal logit (E, N, W, S order), 0 for retired agents.
+        """
+        n = x.shape[0]
+        turned = np.ascontiguousarray(x[:, self._turns].reshape(n * self._copies, -1))
+        scores = np.zeros((n * self._copies, 1), dtype=np.float32)
+        unused = np.zeros(n * self._copies, dtype=np.int64)  # the kernel's argmax of one output
+        kernel = self._kernel
+        if self.parallel is not None:
+            kernel = _forward_parallel if self.parallel else _forward_serial
+        kernel(
+            by_episode,
+            m * self._copies,
+            turned,
+            rows,
+            blocks,
+            self.params,
+            self._params_t,
+            self._layers,
+            self._width,
+            self._activation,
+            _MODE_DISCRETE,
+            scores,
+            unused,
+            _NO_CONTINUOUS,
+        )
+        if all_rows:
+            self._n_agents, self._active, self._dirty = saved
+        logits = scores.reshape(n, self._copies)
+        return logits, np.argmax(logits, axis=1).astype(np.int64)
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
         """The actions of a batch of ``P * M`` observations (see the class docstring)."""

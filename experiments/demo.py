@@ -41,7 +41,6 @@ with the path of every output and three commands to go further.
 from __future__ import annotations
 
 import argparse
-import copy
 import csv
 import json
 import shutil
@@ -188,9 +187,10 @@ def evolve_run(regime: str, out: Path, steps: int) -> RunResult:
     """One CMA-ES run of the comparison in ``out/regime`` (a fresh folder).
 
     Both runs use the coevolution regime's CMA-ES options (one 16-unit hidden
-    layer, 16 IPOP restarts), so that only the regime differs.
+    layer shared by the four directions, 16 IPOP restarts), so that only the
+    regime differs.
     """
-    from evolution.config import COEVOLUTION_CMAES
+    from evolution.config import coevolution_cmaes
     from evolution.run import evolve
 
     _, what, options = RUNS[regime]
@@ -198,7 +198,7 @@ def evolve_run(regime: str, out: Path, steps: int) -> RunResult:
     if run_dir.exists():
         shutil.rmtree(run_dir)
     config = {
-        "algo": "cmaes", "algorithm": copy.deepcopy(COEVOLUTION_CMAES), "robot": ROBOT,
+        "algo": "cmaes", "algorithm": coevolution_cmaes(ROBOT), "robot": ROBOT,
         "seed": SEED, "budget_steps": steps, "budget_seconds": None, **options,
     }  # fmt: skip
     print(f"  {regime + ':':<12} {what} ...", flush=True)
@@ -249,10 +249,11 @@ def run_headline(out: Path, steps: int = BUDGET_STEPS) -> dict[str, dict[str, An
     from amaze.curriculum.validation import unseen_mazes
     from amaze.evaluation.protocol import Evaluator
     from amaze.maze import rotations
-    from evolution.config import COEVOLUTION_CMAES
+    from evolution.config import coevolution_cmaes
 
     print(
-        f"\nthe headline: CMA-ES ({ROBOT} robot, options {json.dumps(COEVOLUTION_CMAES)}, seed"
+        f"\nthe headline: CMA-ES ({ROBOT} robot, options {json.dumps(coevolution_cmaes(ROBOT))},"
+        " seed"
         f" {SEED}) in two regimes,\n{steps:,} env steps each, toward the family of {TARGET}:"
     )
     unseen = Evaluator(ROBOT, rotations(unseen_mazes(TARGET, SEED)), inputs=False)

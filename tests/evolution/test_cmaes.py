@@ -50,7 +50,12 @@ def assert_same_trace(first: list, second: list) -> None:
 
 def test_config_defaults_round_trip_through_json() -> None:
     config = CMAESConfig()
-    assert config.network == {"hidden": [], "activation": "tanh", "pool": None}
+    assert config.network == {
+        "hidden": [],
+        "activation": "tanh",
+        "pool": None,
+        "symmetry": "none",
+    }
     data = json.loads(json.dumps(config.to_dict()))
     assert CMAESConfig.from_dict(data) == config
     custom = CMAESConfig.from_dict(
@@ -63,7 +68,12 @@ def test_config_defaults_round_trip_through_json() -> None:
             "cma_options": {"tolfun": 1e-9},
         }
     )
-    assert custom.network == {"hidden": [8, 4], "activation": "relu", "pool": None}
+    assert custom.network == {
+        "hidden": [8, 4],
+        "activation": "relu",
+        "pool": None,
+        "symmetry": "none",
+    }
     again = CMAESConfig.from_dict(json.loads(json.dumps(custom.to_dict())))
     assert again == custom
     assert again.to_dict() == custom.to_dict()
@@ -88,6 +98,7 @@ def test_config_defaults_round_trip_through_json() -> None:
         ({"network": {"robot": "DD"}}, "robot"),
         ({"network": {"type": "neat"}}, "neat"),
         ({"network": {"pool": 0}}, "pool"),
+        ({"network": {"symmetry": "mirror"}}, "mirror"),
         ({"network": [8]}, "network"),
         ({"cma_options": {"no_such_option": 1}}, "no_such_option"),
         ({"cma_options": {"popsize": 10}}, "popsize"),
@@ -117,6 +128,11 @@ def test_algorithm_builds_the_network_for_the_run_robot() -> None:
     assert image.spec.n_params == 9 * 4 + 4
     with pytest.raises(EvolutionConfigError, match="pool"):
         CMAESAlgorithm({"network": {"pool": 3}}, "DD", 0)
+    shared = CMAESAlgorithm({"network": {"hidden": [5], "symmetry": "rotations"}}, "H11", 0)
+    assert shared.spec == NetworkSpec("CD11", (5,), symmetry="rotations")
+    assert shared.spec.n_params == 25 * 5 + 5 + 5 + 1
+    with pytest.raises(EvolutionConfigError, match="CC15 accelerates"):
+        CMAESAlgorithm({"network": {"symmetry": "rotations"}}, "CC15", 0)
     with pytest.raises(EvolutionConfigError, match="seed"):
         CMAESAlgorithm({}, "DD", "zero")
 

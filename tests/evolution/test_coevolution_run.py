@@ -104,7 +104,10 @@ def test_mazes_csv_holds_every_member_ever(finished: Path) -> None:
         assert row["origin"] in ("family", "mutant")
         assert row["maze"] not in validation
         assert MazeSpec.from_string(row["maze"]).seed not in reserved_seeds()
-        assert float(row["success_rate"]) > 0  # the minimal criterion: someone solved it
+        # scored when admitted (the minimal criterion is tested on MazePopulation), and
+        # at every replay since: the last play's success may be anything, even 0
+        assert int(row["plays"]) >= 1 and int(row["last_played"]) >= int(row["birth"])
+        assert 0 <= float(row["success_rate"]) <= 1
         if row["origin"] == "mutant":
             assert 0 <= int(row["parent"]) < int(row["id"])
         if row["retired"]:
@@ -192,6 +195,23 @@ def test_coevolution_fills_the_cmaes_options_it_is_not_given() -> None:
     assert neat == NeatConfig().to_dict()  # NEAT's own defaults, recorded
     direct = EvolveConfig.from_dict({}).algorithm  # the direct regime keeps CMA-ES's defaults
     assert direct == CMAESConfig().to_dict() and direct["network"]["hidden"] == []
+    assert direct["network"]["symmetry"] == "none"
+
+
+@pytest.mark.parametrize(
+    ("robot", "symmetry"), [("DD", "rotations"), ("H15", "rotations"), ("CC15", "none")]
+)
+def test_coevolution_shares_the_network_across_directions_for_discrete_actions(
+    robot: str, symmetry: str
+) -> None:
+    config = EvolveConfig.from_dict({"regime": "coevolution", "robot": robot})
+    assert config.algorithm["network"]["symmetry"] == symmetry
+    # a network given whole (as an older config.json gives it) is taken as it is
+    given = {"hidden": [16], "activation": "tanh", "pool": None}
+    older = EvolveConfig.from_dict(
+        {"regime": "coevolution", "robot": robot, "algorithm": {"network": given}}
+    )
+    assert older.algorithm["network"]["symmetry"] == "none"
 
 
 def test_a_checkpoint_of_the_older_layout_resumes_bit_identically(tmp_path: Path) -> None:

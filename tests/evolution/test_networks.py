@@ -39,11 +39,16 @@ def reference_inputs(robot: str, observations: np.ndarray) -> np.ndarray:
     return out.reshape(n, 25)
 
 
-def reference_outputs(spec: NetworkSpec, params: np.ndarray, observations: np.ndarray):
-    """Output layer of each agent, individual by individual, in float64."""
+def reference_outputs(
+    spec: NetworkSpec, params: np.ndarray, observations: np.ndarray, n_outputs: int | None = None
+):
+    """Output layer of each agent, individual by individual, in float64.
+
+    ``n_outputs`` replaces the spec's (1 for the one network of rotations).
+    """
     p_count = params.shape[0]
     m = observations.shape[0] // p_count
-    sizes = [spec.n_inputs, *spec.hidden, spec.n_outputs]
+    sizes = [spec.n_inputs, *spec.hidden, n_outputs or spec.n_outputs]
     outputs = []
     for p in range(p_count):
         x = reference_inputs(spec.robot, observations[p * m : (p + 1) * m])
@@ -294,3 +299,105 @@ def test_populations_pickle_as_spec_and_parameters():
     assert clone.n_policies == 4 and clone.parallel is False
     np.testing.assert_array_equal(clone(observations), expected)
     assert len(pickle.dumps(population)) < 4 * spec.n_params * 4 + 2000
+
+
+# -- weights shared across the four directions ------------------------------------
+
+
+def turned(robot: str, observations: np.ndarray, turns: int) -> np.ndarray:
+    """The observations of the cell turned ``turns`` quarter-turns clockwise (side ``turns`` east).
+
+    Written out plainly: the 4 walls and 4 signs of DD robots are rolled, images
+    are turned with ``np.rot90`` (row 0 is north, the last column east).
+    """
+    if robot == "DD":
+        walls, signs = observations[:, :4], observations[:, 4:]
+        return np.concatenate([np.roll(walls, -turns, 1), np.roll(signs, -turns, 1)], axis=1)
+    return np.ascontiguousarray(np.rot90(observations, -turns, axes=(2, 3)))
+
+
+@pytest.mark.parametrize(("robot", "hidden"), [("DD", (16,)), ("DD", ()), ("CD15", (6, 5))])
+@pytest.mark.parametrize(("p_count", "m"), [(3, 70), (66, 3)])
+def test_rotations_score_each_direction_with_one_network(robot, hidden, p_count, m):
+    # the logit of direction d is the one-output network on the cell turned so that d is east
+    rng = np.random.default_rng(len(hidden) + p_count)
+    spec = NetworkSpec(robot, hidden, symmetry="rotations")
+    assert spec.layer_sizes == (NetworkSpec(robot).n_inputs, *hidden, 1) and spec.n_outputs == 4
+    params = spec.initial_params(rng, p_count) + rng.normal(0, 0.3, (p_count, spec.n_params))
+    observations = random_observations(robot, p_count * m, rng)
+    expected = np.concatenate(
+        [reference_outputs(spec, params, turned(robot, observations, d), 1) for d in range(4)],
+        axis=1,
+    )
+    for parallel in (False, True):
+        population = spec.population(params, parallel=parallel)
+        logits = population.forward(observations)
+        assert logits.shape == (p_count * m, 4) and logits.dtype == np.float32
+        np.testing.assert_allclose(logits, expected, rtol=1e-4, atol=1e-4)
+        ranked = np.sort(expected, axis=1)
+        clear = ranked[:, -1] - ranked[:, -2] > 1e-3
+        assert clear.mean() > 0.9
+        np.testing.assert_array_equal(
+            population(observations)[clear], expected.argmax(axis=1)[clear]
+        )
+
+
+@pytest.mark.parametrize("robot", ["DD", "CD15", "CD11"])
+def test_rotations_make_the_policy_equivariant(robot):
+    # turn the cell a quarter-turn counterclockwise (what lay east now lies north):
+    # the action turns with it, for every input and every individual
+    rng = np.random.default_rng(21)
+    spec = NetworkSpec(robot, (8,), symmetry="rotations")
+    population = spec.population(spec.initial_params(rng, 4) * 2)
+    observations = random_observations(robot, 4 * 50, rng)
+    actions = population(observations)
+    assert len(np.unique(actions)) == 4
+    for turns in (1, 2, 3):
+        np.testing.assert_array_equal(
+            population(turned(robot, observations, -turns)), (actions + turns) % 4
+        )
+    # the plain network has no such property
+    plain = NetworkSpec(robot, (8,)).population(NetworkSpec(robot, (8,)).initial_params(rng, 4))
+    moved = plain(turned(robot, observations, -1))
+    assert (moved != (plain(observations) + 1) % 4).any()
+
+
+def test_rotations_retire_agents_and_keep_individuals_alike():
+    rng = np.random.default_rng(8)
+    spec = NetworkSpec("DD", (8,), symmetry="rotations")
+    params = spec.initial_params(rng, 3) * 3
+    population = spec.population(params)
+    observations = random_observations("DD", 30, rng)
+    full = population(observations)
+    population.reset(30)
+    population.retire(np.array([0, 11, 29]))
+    partial = population(observations)
+    keep = np.setdiff1d(np.arange(30), [0, 11, 29])
+    np.testing.assert_array_equal(partial[keep], full[keep])
+    np.testing.assert_array_equal(partial[[0, 11, 29]], 0)
+    for p in range(3):
+        rows = slice(10 * p, 10 * p + 10)
+        np.testing.assert_array_equal(population.individual(p)(observations[rows]), full[rows])
+
+
+@pytest.mark.parametrize(
+    ("spec", "n_params"),
+    [
+        (NetworkSpec("DD", symmetry="rotations"), 9),
+        (NetworkSpec("DD", (16,), symmetry="rotations"), 161),
+        (NetworkSpec("H15", symmetry="rotations"), 26),
+        (NetworkSpec("H15", (16,), symmetry="rotations"), 433),
+    ],
+)
+def test_rotations_parameter_counts(spec, n_params):
+    assert spec.n_params == n_params and spec.copies == 4
+    data = json.loads(json.dumps(spec.to_dict()))
+    assert data["symmetry"] == "rotations" and NetworkSpec.from_dict(data) == spec
+
+
+def test_symmetry_is_checked_and_older_specs_have_none():
+    with pytest.raises(EvolutionConfigError, match="'mirror' is not one of none, rotations"):
+        NetworkSpec("DD", symmetry="mirror")
+    with pytest.raises(EvolutionConfigError, match="CC15 accelerates"):
+        NetworkSpec("CC15", symmetry="rotations")
+    assert NetworkSpec.from_dict({"robot": "DD", "hidden": [4]}).symmetry == "none"

@@ -88,13 +88,9 @@ def run_all(commands: list[list[str]], jobs: int) -> None:
 
 
 def champion_file(folder: Path) -> Path:
-    """The final champion of a run folder (a curriculum's is in its final branch)."""
+    """The agent of a run folder, as its ``summary.json`` names it (the suite's figures are its)."""
     summary = json.loads((folder / "summary.json").read_text())
-    lineage = summary.get("final_lineage")
-    if lineage:
-        stage = len(lineage) - 1
-        return folder / f"stages/stage-{stage}/branch-{lineage[-1]}/agent/champion.npz"
-    return folder / "champion.npz"
+    return folder / summary.get("agent", "agent.npz")
 
 
 def figures(folder: Path, seed: int) -> dict[str, float]:

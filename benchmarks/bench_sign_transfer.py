@@ -16,7 +16,6 @@ four classes.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import tempfile
 from pathlib import Path
@@ -26,7 +25,7 @@ from PIL import Image, ImageDraw
 from amaze.evaluation.inputs import enumerate_inputs, evaluate_inputs
 from amaze.evaluation.protocol import INPUT_SIGNS_MAZE, Evaluator
 from amaze.evaluation.suite import standard_suite
-from amaze.maze.signs import Sign, register_custom_signs
+from amaze.maze.signs import register_custom_signs
 from amaze.maze.spec import MazeSpec
 from evolution.agent_file import AgentFileError, load_agent
 
@@ -47,12 +46,7 @@ def draw_chevron(folder: Path, size: int = 64) -> Path:
 
 def reshaped(maze: str, shape: str) -> str:
     """``maze`` with every sign type drawn in ``shape`` (same kind and lightness)."""
-    spec = MazeSpec.from_string(maze)
-    redraw = {
-        kind: tuple(Sign(shape, sign.value) for sign in getattr(spec, kind))
-        for kind in ("clue", "lure", "trap")
-    }
-    return dataclasses.replace(spec, **redraw).to_string()
+    return MazeSpec.from_string(maze).in_shape(shape).to_string()
 
 
 def main(argv: list[str] | None = None) -> int:

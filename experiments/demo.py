@@ -370,7 +370,7 @@ def further_commands(champion: Path) -> list[tuple[str, str]]:
         (
             f"amaze-evolve --regime coevolution --robot {ROBOT} --budget-seconds 300"
             f" --seed {SEED} --out runs/co",
-            "the headline run of the README's results: 5 minutes, about 99% of the suite",
+            "a run of the README's results: 5 minutes on 2 cores",
         ),
         (
             "amaze-experiment run smoke --out studies/smoke --workers 2",

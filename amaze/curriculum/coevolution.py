@@ -83,6 +83,7 @@ from amaze.curriculum.replay import (
 )
 from amaze.curriculum.validation import reserved_seeds, unseen_mazes
 from amaze.maze.maze import Maze, as_mazes, rotations
+from amaze.maze.signs import Sign, SignError
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
 from amaze.validation import check_integer, check_number
 
@@ -135,6 +136,12 @@ class MazePopulationConfig:
     ``validation_candidates`` best agents of every ``validation_every``-th
     generation there (an agent's validation costs as much wall-clock time as
     a few, so a few are played at once, and not every generation).
+    ``shapes`` lists the sign shapes fresh family mazes are drawn in: each
+    such maze draws one (uniformly) for all its signs, keeping their kinds and
+    lightnesses, so that agents that see images (H robots) learn to read more
+    than one shape; mutants keep their parent's (a sign kind a mutation adds
+    comes from the genome's sign set: arrows). ``None`` (the default): the
+    target's own signs. The validation and unseen mazes keep the target's.
     """
 
     capacity: int = 64
@@ -150,6 +157,7 @@ class MazePopulationConfig:
     validation: int = 16
     validation_every: int = 4
     validation_candidates: int = 4
+    shapes: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         def integer(name: str, low: int, high: int) -> None:
@@ -183,6 +191,8 @@ class MazePopulationConfig:
         probability("temperature", strict=True)
         if self.score not in SCORES:
             raise CoevolutionError(f"score {self.score!r} is not one of {', '.join(SCORES)}")
+        if self.shapes is not None:
+            object.__setattr__(self, "shapes", _checked_shapes(self.shapes))
         if self.capacity < self.batch:
             raise CoevolutionError(
                 f"capacity {self.capacity} is smaller than batch {self.batch}: a full"
@@ -203,7 +213,25 @@ class MazePopulationConfig:
         return cls(**data)
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        data = dataclasses.asdict(self)
+        if self.shapes is not None:
+            data["shapes"] = list(self.shapes)
+        return data
+
+
+def _checked_shapes(shapes: object) -> tuple[str, ...]:
+    """``shapes`` as a tuple of known sign shape names (at least one, no repeats)."""
+    if isinstance(shapes, str) or not isinstance(shapes, Sequence) or not shapes:
+        raise CoevolutionError(f"shapes {shapes!r} must be a non-empty list of sign shapes")
+    checked = []
+    for shape in shapes:
+        try:
+            checked.append(Sign(shape).shape)
+        except SignError as error:
+            raise CoevolutionError(f"shapes: {error}") from None
+    if len(set(checked)) != len(checked):
+        raise CoevolutionError(f"shapes {list(shapes)!r} names a shape twice")
+    return tuple(checked)
 
 
 # -- the population -------------------------------------------------------------------
@@ -551,7 +579,12 @@ class MazePopulation:
             seed = int(self.rng.integers(SEED_RANGE))
             if seed not in self.reserved:
                 break
-        return dataclasses.replace(spec, width=width, height=height, seed=seed).to_string()
+        spec = dataclasses.replace(spec, width=width, height=height, seed=seed)
+        if self.config.shapes is not None:
+            spec = spec.in_shape(
+                self.config.shapes[int(self.rng.integers(len(self.config.shapes)))]
+            )
+        return spec.to_string()
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)

@@ -219,6 +219,19 @@ class MazeSpec:
         values.update(changes)
         return MazeSpec(**values)  # type: ignore[arg-type]
 
+    def in_shape(self, shape: str) -> MazeSpec:
+        """A copy whose signs are all drawn in ``shape``, with their kinds and lightnesses.
+
+        ``M1_10x10_C1_L.25`` in ``star`` is ``M1_10x10_Cstar-1_Lstar-.25``: the
+        same maze, with other images on its signs (for H robots).
+        """
+        return self.where(
+            **{
+                kind: tuple(Sign(shape, sign.value) for sign in getattr(self, kind))
+                for kind in ("clue", "lure", "trap")
+            }
+        )
+
     def all_rotations(self) -> list[MazeSpec]:
         """The spec started from each corner, in the reference's order (NW, NE, SW, SE)."""
         order = (

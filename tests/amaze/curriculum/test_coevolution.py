@@ -203,6 +203,33 @@ def test_new_mazes_are_family_mazes_or_mutants_of_members() -> None:
     assert origins == {"replay", "family", "mutant"}
 
 
+def test_family_mazes_draw_their_sign_shape_from_the_shapes_option(tmp_path: Path) -> None:
+    population = _population(capacity=16, batch=4, shapes=["star", "point"])
+    target = MazeSpec.from_string(TARGET)
+    seen = set()
+    for k in range(12):
+        batch = population.propose()
+        for item in batch:
+            spec = MazeSpec.from_string(item.maze)
+            if item.origin != "family":
+                continue
+            shapes = {sign.shape for sign in (*spec.clue, *spec.lure, *spec.trap)}
+            assert len(shapes) == 1 and shapes <= {"star", "point"}, item.maze
+            seen |= shapes
+            values = [[sign.value for sign in getattr(x, kind)] for x in (spec, target)
+                      for kind in ("clue", "lure", "trap")]  # fmt: skip
+            assert values[:3] == values[3:]  # the target's kinds and lightnesses
+        population.update(batch, [_result((k + i) % 5 / 4) for i in range(len(batch))])
+    assert seen == {"star", "point"}
+    codec = StateCodec(curriculum_classes())
+    path = write_checkpoint(tmp_path / "state.npz", population, codec)
+    copy = read_checkpoint(path, codec, ValueError, MazePopulation)
+    assert copy.config.shapes == ("star", "point")
+    assert [b.maze for b in copy.propose()] == [b.maze for b in population.propose()]
+    # without the option, nothing is drawn for it: the target's arrows, the same stream
+    assert _population().config.to_dict()["shapes"] is None
+
+
 def test_same_seed_same_population_and_a_checkpoint_goes_on_identically(tmp_path: Path) -> None:
     def step(population: MazePopulation, k: int) -> list[str]:
         batch = population.propose()
@@ -231,6 +258,10 @@ def test_same_seed_same_population_and_a_checkpoint_goes_on_identically(tmp_path
         ({"min_size": 1}, "min_size"),
         ({"max_size": 4}, "max_size"),
         ({"batchsize": 4}, "unknown coevolution option"),
+        ({"shapes": ["arrow", "blob"]}, "unknown sign shape 'blob'"),
+        ({"shapes": "star"}, "non-empty list"),
+        ({"shapes": []}, "non-empty list"),
+        ({"shapes": ["star", "star"]}, "twice"),
     ],
 )
 def test_bad_options_are_named(options: dict, bad: str) -> None:

@@ -872,23 +872,27 @@ class NetworkPopulation:
                 self._scale,
                 x,
             )
+        mode = self._mode
         if copies > 1:
-            return self._run_turned(
-                x, by_episode, m, rows, blocks, all_rows, saved if all_rows else None
-            )
-        values = np.empty((n, self._n_outputs), dtype=np.float32)
-        if self._mode == _MODE_DISCRETE:
-            actions = np.zeros(n, dtype=np.int64)
-            discrete, continuous = actions, _NO_CONTINUOUS
+            # kernel row 4 k + d: agent k's inputs turned so that side d is east;
+            # its single output is the logit of moving to d
+            x = np.ascontiguousarray(x[:, self._turns].reshape(n * copies, -1))
+            values = np.zeros((n * copies, 1), dtype=np.float32)
+            discrete, continuous = np.zeros(n * copies, dtype=np.int64), _NO_CONTINUOUS
+            mode = _MODE_DISCRETE  # (the kernel's argmax of one output is not used)
+        elif mode == _MODE_DISCRETE:
+            values = np.empty((n, self._n_outputs), dtype=np.float32)
+            discrete, continuous = np.zeros(n, dtype=np.int64), _NO_CONTINUOUS
         else:
-            actions = np.zeros((n, N_CONTINUOUS_OUTPUTS), dtype=np.float64)
-            discrete, continuous = _NO_DISCRETE, actions
+            values = np.empty((n, self._n_outputs), dtype=np.float32)
+            discrete = _NO_DISCRETE
+            continuous = np.zeros((n, N_CONTINUOUS_OUTPUTS), dtype=np.float64)
         kernel = self._kernel
         if self.parallel is not None:
             kernel = _forward_parallel if self.parallel else _forward_serial
         kernel(
             by_episode,
-            m,
+            m * copies,
             x,
             rows,
             blocks,
@@ -897,58 +901,17 @@ class NetworkPopulation:
             self._layers,
             self._width,
             self._activation,
-            self._mode,
+            mode,
             values,
             discrete,
             continuous,
         )
         if all_rows:
             self._n_agents, self._active, self._dirty = saved
-        return values, actions
-
-    def _run_turned(
-        self,
-        x: np.ndarray,
-        by_episode: bool,
-        m: int,
-        rows: np.ndarray,
-        blocks: np.ndarray,
-        all_rows: bool,
-        saved: tuple[Any, ...] | None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """A symmetric network's logits and actions: the layers score each direction's turn.
-
-        Kernel row ``4 k + d`` is agent ``k``'s inputs turned so that side ``d``
-        is east; its single output is the logit of moving to ``d``. The action
-        is the first maximal logit (E, N, W, S order), 0 for retired agents.
-        """
-        n = x.shape[0]
-        turned = np.ascontiguousarray(x[:, self._turns].reshape(n * self._copies, -1))
-        scores = np.zeros((n * self._copies, 1), dtype=np.float32)
-        unused = np.zeros(n * self._copies, dtype=np.int64)  # the kernel's argmax of one output
-        kernel = self._kernel
-        if self.parallel is not None:
-            kernel = _forward_parallel if self.parallel else _forward_serial
-        kernel(
-            by_episode,
-            m * self._copies,
-            turned,
-            rows,
-            blocks,
-            self.params,
-            self._params_t,
-            self._layers,
-            self._width,
-            self._activation,
-            _MODE_DISCRETE,
-            scores,
-            unused,
-            _NO_CONTINUOUS,
-        )
-        if all_rows:
-            self._n_agents, self._active, self._dirty = saved
-        logits = scores.reshape(n, self._copies)
-        return logits, np.argmax(logits, axis=1).astype(np.int64)
+        if copies > 1:  # the first maximal logit (E, N, W, S order); 0 for retired agents
+            logits = values.reshape(n, copies)
+            return logits, np.argmax(logits, axis=1).astype(np.int64)
+        return values, (discrete if mode == _MODE_DISCRETE else continuous)
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
         """The actions of a batch of ``P * M`` observations (see the class docstring)."""

@@ -6,8 +6,10 @@
 
 runs (or, for run folders already finished, only reads) one ``amaze-evolve``
 process per regime and seed, each on its own with the same algorithm
-(CMA-ES with one 16-unit hidden layer and 16 IPOP restarts, or ``--algo
-neat`` with its defaults):
+(CMA-ES with one 16-unit hidden layer of four outputs and 16 IPOP restarts,
+:data:`ALGORITHM`, or ``--algo neat`` with its defaults; ``--algorithm`` with
+``"symmetry": "rotations"`` in its network gives the coevolution regime's
+own default, the network shared by the four directions):
 
 * ``dr``: domain randomisation, the direct regime on 8 fixed mazes of the
   target's family (``M31_8x8 ... M38_20x20``, ``C1_l.25_L.25_t.5_T.5``);

@@ -1,7 +1,7 @@
 """CMA-ES (through the ``cma`` package) over the flat parameters of a fixed-topology network.
 
 The search space is the parameter vector of one :class:`~evolution.networks.NetworkSpec`
-(robot from the run, hidden layers, activation and pooling from
+(robot from the run, hidden layers, activation, pooling and symmetry from
 :class:`CMAESConfig`). :class:`CMAESAlgorithm` drives ``cma.CMAEvolutionStrategy``
 by ask / tell, like :class:`~evolution.neat.NeatAlgorithm`: ``ask()`` gives the
 candidate vectors, :meth:`CMAESAlgorithm.population_policy` turns them into one

@@ -17,7 +17,7 @@ the ``validation_candidates`` best agents of the batch (the run's
 ``fitness`` measure on the validation mazes), the champion kept in the
 checkpoint's state as a :class:`~evolution.generations.ChosenAgent` (written
 at the end as ``agent.npz``), the CMA-ES options of the regime
-(:data:`evolution.config.COEVOLUTION_CMAES`), and the figures
+(:func:`evolution.config.coevolution_cmaes`), and the figures
 ``generations``, ``champion_fitness``, ``policy_steps_per_second``. Env steps
 count every episode played, validation included; ``summary.json``'s
 ``time`` splits the seconds into evaluation, breeding, mazes, validation,

@@ -55,7 +55,7 @@ class EvolveConfig(RegimeConfig):
     and ``max_generations`` may each be ``None`` (no limit), not all three;
     the coevolution regime (:mod:`evolution.coevolution`) evolves its own mazes
     toward ``target``'s family, with the ``coevolution`` options, and fills
-    the CMA-ES options it is not given from :data:`COEVOLUTION_CMAES`. In a
+    the CMA-ES options it is not given from :func:`coevolution_cmaes`. In a
     curriculum regime (``interpolation``, ``edhucat``, ``edens``;
     :mod:`evolution.curriculum`) the budget is ``budget_steps`` and/or
     ``budget_seconds``, shared between stages and branches, and the mazes are

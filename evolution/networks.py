@@ -864,14 +864,9 @@ class NetworkPopulation:
                     f"expected {v}x{v} images for robot {self.robot}, got {observations.shape}"
                 )
             images = np.ascontiguousarray(observations.reshape(n, v, v))
-            x = (np.zeros if copies > 1 else np.empty)((n, self._n_inputs), dtype=np.float32)
-            _pool(
-                images,
-                rows if copies == 1 else np.unique(rows // copies),
-                self._edges,
-                self._scale,
-                x,
-            )
+            x = np.empty((n, self._n_inputs), dtype=np.float32)
+            # an agent's kernel rows are its ``copies`` consecutive ones, active together
+            _pool(images, rows[::copies] // copies, self._edges, self._scale, x)
         mode = self._mode
         if copies > 1:
             # kernel row 4 k + d: agent k's inputs turned so that side d is east;

@@ -16,7 +16,9 @@ own default, the network shared by the four directions):
 * ``direct``: the direct regime on the paper's training maze;
 * ``interpolation``, ``careful`` (edhucat with the careful curator),
   ``edens``: the curriculum loop with their curators;
-* ``coevolution``: the co-evolved maze population.
+* ``coevolution``: the co-evolved maze population;
+* ``edens-populations``: EDEnS over co-evolved maze populations (``--selector``
+  gives its selector's options as JSON).
 
 It prints, per regime, every seed's standard-suite success, R̄ and input
 recognition, and its champion's success and R̄ on 32 family mazes no regime
@@ -57,6 +59,7 @@ REGIMES = {
     "careful": {"regime": "edhucat", "curator": "careful"},
     "edens": {"regime": "edens"},
     "coevolution": {"regime": "coevolution"},
+    "edens-populations": {"regime": "edens-populations"},
 }
 
 
@@ -69,6 +72,8 @@ def command(folder: Path, regime: str, seed: int, args: argparse.Namespace) -> l
     folder.parent.mkdir(parents=True, exist_ok=True)
     config = {**REGIMES[regime], "seed": seed, "algo": args.algo, "algorithm": args.algorithm}
     config["robot"] = args.robot
+    if regime == "edens-populations" and args.selector is not None:
+        config["selector"] = args.selector
     config.update(budget_seconds=args.seconds, budget_steps=args.steps)
     config_file = folder.parent / f"{folder.name}.json"
     config_file.write_text(json.dumps(config))
@@ -130,6 +135,10 @@ def main() -> None:
     parser.add_argument("--robot", default="DD", help="DD, or a hybrid robot such as H15")
     parser.add_argument("--algorithm", type=json.loads, default=None, help="(default: ALGORITHM)")
     parser.add_argument("--jobs", type=int, default=1, help="runs at once (steps budgets only)")
+    parser.add_argument(
+        "--selector", type=json.loads, default=None,
+        help="edens-populations' selector options (JSON; default: the regime's)",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.seconds is None and args.steps is None:
         args.seconds = 300.0

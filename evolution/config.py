@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from amaze.agents.robot import as_robot
-from amaze.curriculum.regimes import REGIMES
+from amaze.curriculum.regimes import COEVOLUTION_REGIMES, REGIMES
 from amaze.runs.config import option
 from amaze.runs.regime import RegimeConfig
 from amaze.validation import check_integer, check_number
@@ -74,7 +74,9 @@ class EvolveConfig(RegimeConfig):
     )
     budget_steps: int | None = option(3_000_000, "environment steps of the scored episodes")
     budget_seconds: float | None = option(None, "wall-clock seconds")
-    max_generations: int | None = option(None, "generations", regimes=("direct", "coevolution"))
+    max_generations: int | None = option(
+        None, "generations", regimes=("direct", *COEVOLUTION_REGIMES)
+    )
     checkpoint_seconds: float = option(
         10.0, "seconds of run time between checkpoints (0: after every generation)"
     )
@@ -133,7 +135,7 @@ class EvolveConfig(RegimeConfig):
         :class:`~evolution.cmaes.CMAESConfig`'s defaults, symmetry ``none``),
         so a ``config.json`` written before symmetries existed keeps its meaning.
         """
-        if self.regime != "coevolution":
+        if self.regime not in COEVOLUTION_REGIMES:
             return
         if self.algo == "cmaes" and isinstance(self.algorithm, dict):
             self.algorithm = {**coevolution_cmaes(self.robot), **self.algorithm}

@@ -135,7 +135,8 @@ class EvolutionRun(GenerationLoop):
     def run_class_for(cls, config: RunConfig) -> type[Run]:
         """This class for the direct regime, :class:`~evolution.curriculum.EvolutionCurriculumRun`
         for the curriculum ones, :class:`~evolution.coevolution.EvolutionCoevolutionRun`
-        for coevolution."""
+        for coevolution, :class:`~evolution.edens_populations.EvolutionEdensPopulationsRun`
+        for edens-populations."""
         if isinstance(config, EvolveConfig) and config.is_curriculum:
             from evolution.curriculum import EvolutionCurriculumRun
 
@@ -144,6 +145,10 @@ class EvolutionRun(GenerationLoop):
             from evolution.coevolution import EvolutionCoevolutionRun
 
             return EvolutionCoevolutionRun
+        if isinstance(config, EvolveConfig) and config.regime == "edens-populations":
+            from evolution.edens_populations import EvolutionEdensPopulationsRun
+
+            return EvolutionEdensPopulationsRun
         return cls
 
     def start(self) -> None:

@@ -74,7 +74,9 @@ class TrainConfig(RegimeConfig):
 
     error = RLConfigError
     options_field = "hyperparameters"
-    supported_regimes = REGIMES  # coevolution included (rl_baselines.coevolution)
+    #: coevolution included (rl_baselines.coevolution); edens-populations, whose
+    #: alternatives copy the learner every epoch, is evolution's only.
+    supported_regimes = tuple(r for r in REGIMES if r != "edens-populations")
     #: An open-ended curriculum's epoch: the paper's 100 k steps a branch at 3 M steps, K = 3.
     default_epochs = 10
     default_eval_mazes = (PAPER_EVALUATION_MAZE,)

@@ -42,8 +42,10 @@ def _argv(regime: str, algo: str, config: Path, out: Path) -> list[str]:
     return [*argv, "--budget-steps", budget, "--config", str(config), "--out", str(out)]
 
 
-def _options(algo: str) -> dict:
+def _options(algo: str, regime: str) -> dict:
     algo = algo.partition("-")[0]
+    if algo in EVOLUTION and regime == "edens-populations":  # epochs of 2 x 2 generations
+        return {"algorithm": {"population_size": 8}, "selector": {"alternatives": 2, "epoch": 2}}
     if algo in EVOLUTION:
         return {"algorithm": {"population_size": 8}}
     rollout = {"n_steps": 8, **({"batch_size": 16} if algo == "ppo" else {})}
@@ -55,8 +57,10 @@ def _options(algo: str) -> dict:
 def test_every_run_folder_has_the_same_evaluations(tmp_path: Path, regime: str, algo: str) -> None:
     if algo.endswith("-jax") and regime == "coevolution":
         pytest.skip("the jax framework does not run the coevolution regime (refused)")
+    if algo not in EVOLUTION and regime == "edens-populations":
+        pytest.skip("RL does not run the edens-populations regime (refused)")
     config = tmp_path / "options.json"
-    config.write_text(json.dumps(_options(algo)))
+    config.write_text(json.dumps(_options(algo, regime)))
     out = tmp_path / "run"
     main = evolve_main if algo in EVOLUTION else train_main
     assert main(_argv(regime, algo, config, out)) == 0

@@ -48,6 +48,7 @@ SAMPLES: dict[str, Any] = {
     "advisor_options": {"validation": 2},
     "replay": "elsewhere",
     "coevolution": {"capacity": 8},
+    "selector": {"epoch": 5},
     "max_generations": 3,
 }
 
@@ -83,6 +84,7 @@ CASES = [
     for f in _fields(config_class)
     if f.metadata.get("regimes") is not None
     for regime in REGIMES
+    if regime in config_class.supported_regimes  # RL refuses edens-populations, by name
 ]
 
 

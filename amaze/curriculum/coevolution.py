@@ -63,6 +63,7 @@ state), so a run resumed from a checkpoint goes on bit-identically.
 
 from __future__ import annotations
 
+import copy
 import csv
 import dataclasses
 import io
@@ -379,13 +380,37 @@ class MazePopulation:
     rng: np.random.Generator = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        spec = MazeSpec.from_string(self.target)
-        self.target = spec.to_string()
-        side = max(spec.width, spec.height)
-        self.max_size = self.config.max_size or max(side, self.config.min_size)
-        self.genome = MazeGenome(min_size=self.config.min_size, max_size=self.max_size)
+        self.target = MazeSpec.from_string(self.target).to_string()
+        self._steer(self.config)
         self.rng = np.random.default_rng(check_integer("seed", self.seed, minimum=0))
         self._generated: dict[str, list[Maze]] = {}
+
+    def _steer(self, config: MazePopulationConfig) -> None:
+        """Take ``config`` as the population's options, and the genome its sides give."""
+        spec = MazeSpec.from_string(self.target)
+        self.config = config
+        self.max_size = config.max_size or max(spec.width, spec.height, config.min_size)
+        self.genome = MazeGenome(min_size=config.min_size, max_size=self.max_size)
+
+    def branch(
+        self, config: MazePopulationConfig | None = None, seed: int | None = None
+    ) -> MazePopulation:
+        """A copy that goes on apart from this one, with ``config`` as its options if given.
+
+        The copy has its own records, members and generator (``seed``'s, or a
+        copy of this one's state); the generated mazes are shared (a maze's
+        4 rotations are the same in every copy), so a branch compiles nothing
+        again. EDEnS's alternatives are branches
+        (:mod:`amaze.curriculum.population_selector`).
+        """
+        twin = copy.copy(self)  # through __getstate__, which leaves the cache out
+        twin._generated = self._generated
+        twin.records = copy.deepcopy(self.records)
+        twin.members = list(self.members)
+        twin.rng = copy.deepcopy(self.rng) if seed is None else np.random.default_rng(seed)
+        if config is not None:
+            twin._steer(config)
+        return twin
 
     @classmethod
     def for_run(

@@ -57,7 +57,7 @@ Options (``curator_options``): ``validation`` (number of mazes, 1..64),
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -86,9 +86,12 @@ NEUTRAL_OPERATORS = ("seed", "start")
 CRITERIA = ("validation_success_rate", "validation_normalized_reward", "difficulty_reached")
 
 
+_Item = TypeVar("_Item")
+
+
 def pareto_front(
-    candidates: Sequence[Candidate], criteria: Callable[[Candidate], tuple[float, ...]]
-) -> list[Candidate]:
+    candidates: Sequence[_Item], criteria: Callable[[_Item], tuple[float, ...]]
+) -> list[_Item]:
     """The candidates that no other one matches or beats on every criterion and beats on one.
 
     Criteria are maximised; candidates with equal criteria are all kept. The

@@ -19,7 +19,11 @@
 * **coevolution**: no stages: a population of mazes co-evolves with the
   agents (:mod:`amaze.curriculum.coevolution`), leading to the target's
   family; one loop for every trainer (``amaze.runs.coevolution``), each
-  trainer giving its batch step (a generation, an RL rollout).
+  trainer giving its batch step (a generation, an RL rollout);
+* **edens-populations**: EDEnS over co-evolved maze populations
+  (:mod:`amaze.curriculum.population_selector`): every epoch, alternatives
+  of the co-evolution loop's whole state, each with a mutated controller of
+  its maze population, play one epoch; one is kept from a Pareto front.
 
 :func:`branch_allowance` shares a curriculum's budget between its stages and
 branches, and :func:`curriculum_over` says when it is spent.
@@ -38,6 +42,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 __all__ = [
+    "COEVOLUTION_REGIMES",
     "CURRICULUM_REGIMES",
     "MAX_OPEN_STAGES",
     "OPEN_EPOCHS",
@@ -48,9 +53,11 @@ __all__ = [
     "curriculum_over",
 ]
 
-REGIMES = ("direct", "interpolation", "edhucat", "edens", "coevolution")
+REGIMES = ("direct", "interpolation", "edhucat", "edens", "coevolution", "edens-populations")
 #: The regimes played by the curriculum loop (stages of branches chosen by a curator).
 CURRICULUM_REGIMES = ("interpolation", "edhucat", "edens")
+#: The regimes played by the co-evolution loop (a maze population beside the learner).
+COEVOLUTION_REGIMES = ("coevolution", "edens-populations")
 #: ``stages`` of an open-ended curriculum: stages until the budget is spent.
 OPEN_STAGES = 0
 #: The default ``epochs`` of an open-ended curriculum: an epoch is ``budget / (K * epochs)``.

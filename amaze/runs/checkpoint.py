@@ -94,7 +94,9 @@ def curriculum_classes() -> list[type]:
 
     Both trainers' co-evolution checkpoints hold them.
     """
-    import amaze.curriculum.coevolution  # noqa: F401 (loaded, so that its classes are found)
+    # loaded, so that their classes are found
+    import amaze.curriculum.coevolution
+    import amaze.curriculum.population_selector  # noqa: F401
 
     return [
         *package_classes("amaze.agents.robot"),

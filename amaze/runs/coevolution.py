@@ -154,6 +154,9 @@ class CoevolutionState:
     version: int = 0
     #: The SHA-256 of the run's ``config.json`` (:attr:`~amaze.runs.lifecycle.Run.config_digest`).
     config_sha256: str | None = None
+    #: The EDEnS selector's state in the ``edens-populations`` regime
+    #: (:class:`~amaze.curriculum.population_selector.SelectorState`); None otherwise.
+    selection: Any = None
 
     def __post_init__(self) -> None:
         self.version = self.VERSION
@@ -330,7 +333,7 @@ class CoevolutionRun(Run):
             total, unit = c.budget_seconds, "s"
         else:
             total, unit = self.round_limit(), f"{self.position_field}s"
-        desc = f"{c.algo} coevolution seed {c.seed}"
+        desc = f"{c.algo} {c.regime} seed {c.seed}"
         self._ticked = time.perf_counter()
         last: tuple[int, float] | None = None  # steps and seconds at the last checkpoint
         going = self.budget_left()
@@ -445,7 +448,7 @@ class CoevolutionRun(Run):
         s.round += 1
         clock.lap("mazes")
         validation = validation_success_rate = math.nan
-        if (s.round - 1) % self.options.validation_every == 0:
+        if self.validation_due():
             validation, validation_success_rate = self._validate_round(played.candidates)
             clock.lap("validation")
         row = {
@@ -469,6 +472,10 @@ class CoevolutionRun(Run):
         row = {name: row[name] for name in self.progress_fields}
         self.round_done(row)
         return row
+
+    def validation_due(self) -> bool:
+        """Whether the round just played validates its candidates: every ``validation_every``-th."""
+        return (self.state.round - 1) % self.options.validation_every == 0
 
     def _validate_round(self, candidates: Sequence[Any]) -> tuple[float, float]:
         """Play ``candidates`` on the validation mazes; their best is champion if it beats it."""

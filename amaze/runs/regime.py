@@ -24,7 +24,9 @@ from amaze.curriculum.curators import (
     curator_names,
 )
 from amaze.curriculum.interpolation import MAX_STAGES
+from amaze.curriculum.population_selector import SelectorConfig
 from amaze.curriculum.regimes import (
+    COEVOLUTION_REGIMES,
     CURRICULUM_REGIMES,
     MAX_OPEN_STAGES,
     OPEN_EPOCHS,
@@ -116,7 +118,7 @@ class RegimeConfig(RunConfig):
         "the maze a curriculum or a co-evolution leads to (interpolation's end, the"
         " curators' target, the family of the co-evolved mazes)",
         metavar="MAZE",
-        regimes=(*CURRICULUM_REGIMES, "coevolution"),
+        regimes=(*CURRICULUM_REGIMES, *COEVOLUTION_REGIMES),
     )
     mazes: list[str] = option(
         default_factory=lambda: [PAPER_TRAINING_MAZE],
@@ -174,9 +176,17 @@ class RegimeConfig(RunConfig):
     )
     coevolution: dict[str, Any] = option(
         default_factory=dict,
-        help="the maze population's options in the coevolution regime (MazePopulationConfig)",
+        help="the maze population's options in the coevolution regimes (MazePopulationConfig;"
+        " in edens-populations, the first epoch's controller)",
         command_line=False,
-        regimes=("coevolution",),
+        regimes=COEVOLUTION_REGIMES,
+    )
+    selector: dict[str, Any] = option(
+        default_factory=dict,
+        help="the EDEnS selector's options in the edens-populations regime (SelectorConfig:"
+        " alternatives, epoch, mutations, criteria)",
+        command_line=False,
+        regimes=("edens-populations",),
     )
     evaluation_points: int = option(
         DEFAULT_POINTS,
@@ -419,18 +429,16 @@ class RegimeConfig(RunConfig):
         :class:`~amaze.curriculum.coevolution.MazePopulationConfig`, which
         the trainer's options must fit (:meth:`check_coevolution_options`).
         """
-        if not isinstance(self.coevolution, dict):
-            raise self.error(f"coevolution {self.coevolution!r} is not a JSON object")
-        if self.regime != "coevolution":
-            if self.coevolution:
-                raise self.error(
-                    f"coevolution options {self.coevolution!r} are for the coevolution regime,"
-                    f" not {self.regime}"
-                )
-            return
+        for name in ("coevolution", "selector"):
+            if not isinstance(getattr(self, name), dict):
+                raise self.error(f"{name} {getattr(self, name)!r} is not a JSON object")
+        if self.regime not in COEVOLUTION_REGIMES:
+            return  # options set here were refused with the other options of other regimes
         options = {**self.coevolution_defaults(), **self.coevolution}
         try:
             checked = MazePopulationConfig.from_dict(options)
+            if self.regime == "edens-populations":
+                self.selector = SelectorConfig.from_dict(self.selector).to_dict()
         except CoevolutionError as problem:
             raise self.error(str(problem)) from None
         self.check_coevolution_options(checked)

@@ -1,0 +1,190 @@
+"""Evolution in the edens-populations regime: epochs, alternatives, the pick, resume, refusals."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from amaze.curriculum.population_selector import CONTROLLER_FIELDS, DEFAULT_CRITERIA
+from evolution import EvolutionConfigError
+from evolution.agent_file import read_agent
+from evolution.cli import main
+from evolution.edens_populations import EvolutionEdensPopulationsRun
+from evolution.run import EvolutionRun, EvolveConfig
+from rl_baselines import RLConfigError
+from rl_baselines.config import TrainConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+#: A tiny run: 3 alternatives of 4 generations per epoch, 30 generations (2 epochs and a half).
+CONFIG = {
+    "regime": "edens-populations",
+    "max_generations": 30,
+    "budget_steps": None,
+    "checkpoint_seconds": 0,
+    "algorithm": {"population_size": 8},
+    "coevolution": {"capacity": 6, "batch": 3, "validation": 4, "validation_every": 2},
+    "selector": {"alternatives": 3, "epoch": 4},
+}
+
+
+def _write_config(folder: Path, **changes: object) -> Path:
+    path = folder / "config-in.json"
+    path.write_text(json.dumps({**CONFIG, **changes}))
+    return path
+
+
+def _progress(out: Path) -> list[dict[str, str]]:
+    with open(out / "progress.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    for row in rows:  # seconds differ from run to run
+        del row["seconds"], row["eval_seconds"]
+    return rows
+
+
+def _epochs(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / "epochs.jsonl").read_text().splitlines()]
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("edens-populations")
+    out = folder / "run"
+    assert main(["--config", str(_write_config(folder)), "--out", str(out), "--no-progress"]) == 0
+    return out
+
+
+def test_a_run_plays_epochs_of_alternatives(finished: Path) -> None:
+    summary = json.loads((finished / "summary.json").read_text())
+    assert summary["regime"] == "edens-populations" and summary["generations"] == 30
+    assert summary["epochs"] == 2  # 12 generations an epoch; 6 of the third
+    assert summary["epoch_under_way"] == {"alternative": 1, "generations": 2}
+    assert summary["selector"]["criteria"] == list(DEFAULT_CRITERIA)
+    assert sum(summary["chosen_alternatives"]) == 2
+    assert set(summary["controller"]) == set(CONTROLLER_FIELDS)
+    progress = _progress(finished)
+    assert [int(r["generation"]) for r in progress] == list(range(1, 31))
+    # each alternative plays 4 generations in turn, its last one validated
+    assert [int(r["alternative"]) for r in progress[:12]] == [0] * 4 + [1] * 4 + [2] * 4
+    assert [int(r["epoch"]) for r in progress] == [0] * 12 + [1] * 12 + [2] * 6
+    for row in progress[3:24:4]:
+        assert row["validation_success_rate"] != "nan"
+    metadata = read_agent(finished / "agent.npz")[1]
+    assert metadata["generation"] == summary["champion_generation"]
+    for name in ("epochs.jsonl", "mazes.csv", "population.png", "coevolution.png"):
+        assert (finished / name).stat().st_size > 0, name
+
+
+def test_epochs_jsonl_records_every_alternative_and_the_pick(finished: Path) -> None:
+    epochs = _epochs(finished)
+    assert [e["epoch"] for e in epochs] == [0, 1]
+    assert [e["generation"] for e in epochs] == [12, 24]
+    progress = _progress(finished)
+    for epoch in epochs:
+        alternatives = epoch["alternatives"]
+        assert [a["index"] for a in alternatives] == [0, 1, 2]
+        assert alternatives[0]["mutated"] == []  # the first keeps the parent's controller
+        for a in alternatives[1:]:
+            assert 1 <= len(a["mutated"]) <= 2 and set(a["mutated"]) <= set(CONTROLLER_FIELDS)
+        assert epoch["chosen"] in epoch["front"]
+        assert epoch["front"] == [a["index"] for a in alternatives if a["on_front"]]
+        # an alternative's criteria are its last generation's validation
+        for a in alternatives:
+            last = progress[epoch["generation"] - 12 + 4 * a["index"] + 3]
+            assert float(last["validation_success_rate"]) == pytest.approx(
+                a["validation_success_rate"]
+            )
+            assert float(last["validation"]) == pytest.approx(a["validation_fitness"], abs=1e-6)
+        # the front: no living alternative beats a member on every criterion
+        alive = [a for a in alternatives if not a["extinct"]] or alternatives
+        for a in alternatives:
+            if not a["on_front"]:
+                continue
+            mine = [a[k] for k in DEFAULT_CRITERIA]
+            for other in alive:
+                theirs = [other[k] for k in DEFAULT_CRITERIA]
+                beaten = all(t >= m for t, m in zip(theirs, mine, strict=True))
+                assert not (beaten and theirs != mine)
+    # the next epoch starts from the chosen alternative's controller
+    chosen = epochs[0]["alternatives"][epochs[0]["chosen"]]["controller"]
+    assert epochs[1]["alternatives"][0]["controller"] == chosen
+
+
+def test_the_same_seed_gives_the_same_choices(finished: Path, tmp_path: Path) -> None:
+    out = tmp_path / "again"
+    assert main(["--config", str(_write_config(tmp_path)), "--out", str(out), "--no-progress"]) == 0
+    assert _epochs(out) == _epochs(finished)
+    assert _progress(out) == _progress(finished)
+
+
+def test_resume_after_a_kill_in_an_epoch_is_bit_identical(finished: Path, tmp_path: Path) -> None:
+    out = tmp_path / "killed"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "evolution.cli", "--config", str(_write_config(tmp_path)),
+         "--out", str(out), "--no-progress"],
+        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    deadline = time.monotonic() + 120
+    progress = out / "progress.csv"
+    # killed in the second alternative of the second epoch, or later
+    while not (progress.exists() and len(progress.read_text().splitlines()) > 18):
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            pytest.fail("the run ended before it could be killed")
+        time.sleep(0.002)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    assert not (out / "summary.json").exists()
+    assert main(["--resume", str(out), "--no-progress"]) == 0
+    ours, theirs = read_agent(out / "agent.npz"), read_agent(finished / "agent.npz")
+    assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in ours[0])
+    assert _epochs(out) == _epochs(finished)
+    assert _progress(out) == _progress(finished)
+    assert (out / "mazes.csv").read_text() == (finished / "mazes.csv").read_text()
+
+
+def test_the_regime_chooses_the_run_class() -> None:
+    config = EvolveConfig.from_dict({"regime": "edens-populations"})
+    assert EvolutionRun.run_class_for(config) is EvolutionEdensPopulationsRun
+    assert config.selector["alternatives"] == 3  # config.json records what ran
+    assert config.algorithm["network"]["symmetry"] == "rotations"  # the coevolution defaults
+
+
+@pytest.mark.parametrize(
+    ("changes", "bad"),
+    [
+        ({"selector": {"alternatives": 0}}, "selector alternatives 0"),
+        ({"selector": {"epochs": 3}}, "unknown selector option.*'epochs'"),
+        ({"selector": {"criteria": ["speed"]}}, "selector criteria"),
+        ({"selector": {"criteria": "diversity"}}, "non-empty list"),
+        ({"selector": [1]}, "is not a JSON object"),
+        ({"coevolution": {"score": "fun"}}, "score 'fun'"),
+        ({"regime": "coevolution"}, "selector .* has no effect in the coevolution regime"),
+    ],
+)
+def test_edens_populations_config_refusals(changes: dict, bad: str) -> None:
+    with pytest.raises(EvolutionConfigError, match=bad):
+        EvolveConfig.from_dict({**CONFIG, **changes})
+
+
+def test_rl_refuses_the_regime() -> None:
+    with pytest.raises(RLConfigError, match="'edens-populations' is not run by this trainer"):
+        TrainConfig.from_dict({"regime": "edens-populations"})
+
+
+def test_bad_selector_options_are_one_error_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = _write_config(tmp_path, selector={"epoch": -1})
+    assert main(["--config", str(config), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "selector epoch -1" in err[0]
+    assert not (tmp_path / "o").exists()

@@ -150,7 +150,8 @@ class TrainingCommand:
         run.add_argument(
             "--replay",
             metavar="RUN_DIR",
-            help="rerun RUN_DIR's config with its recorded curriculum decisions, into --out",
+            help="rerun RUN_DIR's config with its recorded decisions (a curriculum's, or the"
+            " edens-populations selector's picks), into --out",
         )
         run.add_argument(
             "--replicates",

@@ -31,16 +31,25 @@ generated and compiled once, whichever alternative meets it.
 object per decided epoch: the round and env steps at its end, every
 alternative's controller (the population options it ran with), the fields
 mutated, its criteria, whether it was extinct and on the front, and the
-chosen alternative; ``summary.json``'s ``selector`` (the options),
+chosen alternative; ``epochs.png``, the alternatives' validation success
+and the chosen controller over the epochs; ``summary.json``'s ``selector`` (the options),
 ``epochs`` (decided), ``controller`` (the population options the run ended
 with) and ``chosen_alternatives`` (how often each alternative was kept).
 Same config and seed give the same choices (every draw comes from the run's
 seed; :func:`~amaze.curriculum.population_selector.selector_rng`).
+
+**Replay.** ``--replay RUN_DIR`` starts a new run with RUN_DIR's config and
+its recorded picks (its ``epochs.jsonl``, copied to ``replay.jsonl``) in place
+of the selector's draws, as a curriculum replays its curator's decisions: an
+unchanged file gives the same run, bit for bit; a file whose ``chosen`` was
+changed (a person overruling the selector) makes the run keep that
+alternative, on the front or not. Such epochs say ``"replayed": true``.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from abc import abstractmethod
 from collections.abc import Mapping
@@ -64,18 +73,64 @@ from amaze.curriculum.population_selector import (
 from amaze.maze import Maze
 from amaze.runs.branches import Clock
 from amaze.runs.coevolution import BatchResults, CoevolutionRun, CoevolutionState
-from amaze.runs.folder import write_bytes
+from amaze.runs.config import RunConfig
+from amaze.runs.epochs_picture import save_epochs_plot
+from amaze.runs.folder import read_text, write_bytes
+from amaze.validation import parse_json
 
-__all__ = ["EPOCH_FIELDS", "EdensPopulationsRun"]
+__all__ = ["EPOCHS_FILE", "EPOCH_FIELDS", "REPLAY_FILE", "EdensPopulationsRun", "read_picks"]
 
 #: The ``progress.csv`` columns this regime adds after the trainer's.
 EPOCH_FIELDS = ("epoch", "alternative")
+#: The selector's record of a run, and a replaying run's copy of the replayed run's.
+EPOCHS_FILE = "epochs.jsonl"
+REPLAY_FILE = "replay.jsonl"
+
+
+def read_picks(path: Path, alternatives: int, error: type[ValueError]) -> tuple[list[int], str]:
+    """The chosen alternative of every epoch of an ``epochs.jsonl``, and the file's text.
+
+    Each line must be the JSON object of the next epoch (``epoch`` 0, 1...)
+    with ``chosen`` one of the ``alternatives``; ``error`` names a bad line.
+    """
+    where = repr(str(path))
+    if not (path.exists() or path.is_symlink()):
+        raise error(f"epochs file {where} is missing")
+    text = read_text(path, error, "epochs file")
+    picks: list[int] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            data = parse_json(line, "the line", error=ValueError)
+        except ValueError as problem:
+            raise error(f"epochs file {where}, line {number}: {problem}") from None
+        epoch = data.get("epoch") if isinstance(data, dict) else None
+        chosen = data.get("chosen") if isinstance(data, dict) else None
+        if epoch != len(picks) or isinstance(epoch, bool):
+            raise error(
+                f"epochs file {where}, line {number}: epoch {epoch!r} is not {len(picks)},"
+                " the next epoch"
+            )
+        if isinstance(chosen, bool) or not isinstance(chosen, int):
+            raise error(f"epochs file {where}, line {number}: chosen {chosen!r} is not a number")
+        if not 0 <= chosen < alternatives:
+            raise error(
+                f"epochs file {where}, line {number}: chosen {chosen} is not one of the"
+                f" {alternatives} alternatives"
+            )
+        picks.append(chosen)
+    return picks, text
 
 
 class EdensPopulationsRun(CoevolutionRun):
     """The co-evolution loop under an EDEnS selector (see the module docstring)."""
 
-    outputs: ClassVar[tuple[str, ...]] = (*CoevolutionRun.outputs, "epochs.jsonl")
+    outputs: ClassVar[tuple[str, ...]] = (*CoevolutionRun.outputs, EPOCHS_FILE, "epochs.png")
+    #: The picks of the run this one replays (``--replay``), in epoch order; empty otherwise.
+    replayed: list[int]
+    #: The text they were read from, written as the run's ``replay.jsonl``.
+    replayed_text: str = ""
 
     # -- the trainer's part ---------------------------------------------------
 
@@ -93,6 +148,35 @@ class EdensPopulationsRun(CoevolutionRun):
     def selector(self) -> SelectorConfig:
         """The selector's options (the config's ``selector``, checked by it)."""
         return SelectorConfig.from_dict(self.config.selector)
+
+    @classmethod
+    def replay_config(cls, source: Path, config: RunConfig) -> RunConfig:
+        """``source``'s config, marked as its replay, once its finished ``epochs.jsonl`` checks."""
+        c: Any = config
+        if not (source / "summary.json").exists():
+            raise c.error(f"{str(source)!r} holds an unfinished run (resume it first)")
+        alternatives = SelectorConfig.from_dict(c.selector).alternatives
+        read_picks(source / EPOCHS_FILE, alternatives, c.error)
+        return dataclasses.replace(c, replay=str(source))
+
+    def start(self) -> None:
+        super().start()
+        self._read_replayed()
+
+    def restore(self) -> int | None:
+        self._read_replayed()
+        return super().restore()
+
+    def _read_replayed(self) -> None:
+        """A replay's picks: from the run's own copy once it has one, else the replayed run's."""
+        c = self.config
+        self.replayed = []
+        if c.replay is None:
+            return
+        alternatives = self.selector.alternatives
+        copied = self.out / REPLAY_FILE
+        source = copied if copied.exists() else Path(c.replay) / EPOCHS_FILE
+        self.replayed, self.replayed_text = read_picks(source, alternatives, c.error)
 
     @property
     def selection(self) -> SelectorState:
@@ -192,6 +276,9 @@ class EdensPopulationsRun(CoevolutionRun):
         c, s, selection = self.config, self.state, self.selection
         rng = selector_rng(c.seed, selection.epoch, "select")
         chosen, front, alive = choose(selection.outcomes, self.selector.criteria, rng)
+        replayed = selection.epoch < len(self.replayed)
+        if replayed:
+            chosen = selection.outcomes[self.replayed[selection.epoch]]
         assert chosen.mazes is not None
         s.mazes = chosen.mazes
         self.adopt_learner(chosen.learner)
@@ -203,6 +290,7 @@ class EdensPopulationsRun(CoevolutionRun):
                 self.position_field: s.round,
                 "steps": s.steps,
                 "chosen": chosen.index,
+                "replayed": replayed,
                 "front": sorted(on_front),
                 "alternatives": [
                     {
@@ -225,17 +313,24 @@ class EdensPopulationsRun(CoevolutionRun):
     # -- outputs ----------------------------------------------------------------
 
     def write_epochs(self) -> Path:
-        """``epochs.jsonl``: one line per decided epoch, written atomically."""
+        """``epochs.jsonl`` (one line per decided epoch), and a replay's ``replay.jsonl`` once."""
+        c = self.config
+        if c.replay is not None and not (self.out / REPLAY_FILE).exists():
+            write_bytes(self.out / REPLAY_FILE, self.replayed_text.encode("utf-8"))
         lines = [json.dumps(d, sort_keys=False) + "\n" for d in self.selection.decisions]
-        return write_bytes(self.out / "epochs.jsonl", "".join(lines).encode("utf-8"))
+        return write_bytes(self.out / EPOCHS_FILE, "".join(lines).encode("utf-8"))
 
     def save_checkpoint(self) -> None:
         super().save_checkpoint()
         self.write_epochs()
 
     def extra_outputs(self) -> None:
+        """The co-evolution loop's, ``epochs.jsonl`` and ``epochs.png``."""
+        c = self.config
         super().extra_outputs()
         self.write_epochs()
+        title = f"{c.algo}, {c.regime}, seed {c.seed}: {self.selection.epoch} epochs"
+        save_epochs_plot(self.selection.decisions, self.out / "epochs.png", c.target, title)
 
     def figures(self) -> dict[str, Any]:
         """The loop's figures, the selector's options, the epochs and the controller reached."""

@@ -172,7 +172,7 @@ class RegimeConfig(RunConfig):
         None,
         "the run whose recorded decisions this run replays",
         command_line=False,
-        regimes=CURRICULUM_REGIMES,
+        regimes=(*CURRICULUM_REGIMES, "edens-populations"),
     )
     coevolution: dict[str, Any] = option(
         default_factory=dict,
@@ -234,6 +234,8 @@ class RegimeConfig(RunConfig):
         if self.eval_mazes is not None:
             self.eval_mazes = self._maze_list("eval_mazes", self.eval_mazes, empty=True)
         self._check_coevolution()
+        if self.replay is not None and not isinstance(self.replay, str):
+            raise self.error(f"replay {self.replay!r} is not a run folder")
         if self.regime == "direct":
             self._direct_defaults()
         if not self.is_curriculum:
@@ -284,8 +286,6 @@ class RegimeConfig(RunConfig):
         if not isinstance(self.curator_options, dict):
             raise self.error(f"curator_options {self.curator_options!r} is not a JSON object")
         self._check_advisor()
-        if self.replay is not None and not isinstance(self.replay, str):
-            raise self.error(f"replay {self.replay!r} is not a run folder")
         return self
 
     def _check_advisor(self) -> None:

@@ -79,7 +79,7 @@ def test_a_run_plays_epochs_of_alternatives(finished: Path) -> None:
         assert row["validation_success_rate"] != "nan"
     metadata = read_agent(finished / "agent.npz")[1]
     assert metadata["generation"] == summary["champion_generation"]
-    for name in ("epochs.jsonl", "mazes.csv", "population.png", "coevolution.png"):
+    for name in ("epochs.jsonl", "epochs.png", "mazes.csv", "population.png", "coevolution.png"):
         assert (finished / name).stat().st_size > 0, name
 
 
@@ -188,3 +188,67 @@ def test_bad_selector_options_are_one_error_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "selector epoch -1" in err[0]
     assert not (tmp_path / "o").exists()
+
+
+def _strip_replayed(epochs: list[dict]) -> list[dict]:
+    return [{k: v for k, v in e.items() if k != "replayed"} for e in epochs]
+
+
+def test_a_replay_follows_the_recorded_picks(finished: Path, tmp_path: Path) -> None:
+    out = tmp_path / "replay"
+    assert main(["--replay", str(finished), "--out", str(out), "--no-progress"]) == 0
+    epochs = _epochs(out)
+    assert all(e["replayed"] for e in epochs)
+    assert not any(e["replayed"] for e in _epochs(finished))
+    assert _strip_replayed(epochs) == _strip_replayed(_epochs(finished))
+    assert (out / "replay.jsonl").read_text() == (finished / "epochs.jsonl").read_text()
+    ours, theirs = read_agent(out / "agent.npz"), read_agent(finished / "agent.npz")
+    assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in ours[0])
+
+
+def test_a_replay_keeps_the_alternative_a_person_chose(finished: Path, tmp_path: Path) -> None:
+    source = tmp_path / "edited"
+    subprocess.run(["cp", "-r", str(finished), str(source)], check=True)
+    epochs = _epochs(source)
+    overruled = next(
+        a["index"] for a in epochs[0]["alternatives"] if a["index"] != epochs[0]["chosen"]
+    )
+    epochs[0]["chosen"] = overruled
+    (source / "epochs.jsonl").write_text("".join(json.dumps(e) + "\n" for e in epochs))
+    out = tmp_path / "replay"
+    assert main(["--replay", str(source), "--out", str(out), "--no-progress"]) == 0
+    replayed = _epochs(out)
+    assert replayed[0]["chosen"] == overruled
+    chosen = replayed[0]["alternatives"][overruled]["controller"]
+    assert replayed[1]["alternatives"][0]["controller"] == chosen  # its lineage went on
+
+
+@pytest.mark.parametrize(
+    ("text", "bad"),
+    [
+        ('{"epoch": 1, "chosen": 0}\n', "line 1: epoch 1 is not 0"),
+        ('{"epoch": 0, "chosen": 3}\n', "chosen 3 is not one of the 3 alternatives"),
+        ('{"epoch": 0, "chosen": "0"}\n', "chosen '0' is not a number"),
+        ('{"epoch": 0, "chosen": 0}\n[1]\n', "line 2: epoch None"),
+        ("{oops\n", "line 1"),
+    ],
+)
+def test_a_bad_epochs_file_is_refused_by_name(
+    finished: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, bad: str
+) -> None:
+    source = tmp_path / "bad"
+    subprocess.run(["cp", "-r", str(finished), str(source)], check=True)
+    (source / "epochs.jsonl").write_text(text)
+    out = tmp_path / "replay"
+    assert main(["--replay", str(source), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "epochs.jsonl" in err[0] and bad in err[0], err
+    assert not out.exists()
+
+
+def test_an_unfinished_run_is_not_replayed(finished: Path, tmp_path: Path) -> None:
+    source = tmp_path / "unfinished"
+    subprocess.run(["cp", "-r", str(finished), str(source)], check=True)
+    (source / "summary.json").unlink()
+    with pytest.raises(EvolutionConfigError, match="unfinished run"):
+        EvolutionRun.replay(source, tmp_path / "replay")

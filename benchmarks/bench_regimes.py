@@ -46,14 +46,11 @@ from amaze.curriculum.validation import unseen_mazes
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from evolution.agent_file import load_agent
 from evolution.population import PopulationEvaluator
+from experiments.trainers import DOMAIN_RANDOMISATION_MAZES
 
 ALGORITHM = {"network": {"hidden": [16]}, "restarts": 16}
-DR_MAZES = [
-    f"M{31 + i}_{side}x{side}_C1_l.25_L.25_t.5_T.5"
-    for i, side in enumerate((8, 10, 11, 13, 15, 17, 18, 20))
-]
 REGIMES = {
-    "dr": {"regime": "direct", "mazes": DR_MAZES},
+    "dr": {"regime": "direct", "mazes": DOMAIN_RANDOMISATION_MAZES},
     "direct": {"regime": "direct"},
     "interpolation": {"regime": "interpolation"},
     "careful": {"regime": "edhucat", "curator": "careful"},

@@ -15,13 +15,26 @@ from typing import Any
 from amaze.errors import UsageError
 from amaze.runs.lifecycle import Run
 
-__all__ = ["ALGORITHMS", "RL_ALGORITHMS", "TRAINERS", "run_class", "trainer_fields"]
+__all__ = [
+    "ALGORITHMS",
+    "DOMAIN_RANDOMISATION_MAZES",
+    "RL_ALGORITHMS",
+    "TRAINERS",
+    "run_class",
+    "trainer_fields",
+]
 
 #: The algorithms of each package.
 RL_ALGORITHMS = ("a2c", "ppo")
 EVOLUTION_ALGORITHMS = ("cmaes", "neat")
 ALGORITHMS = (*RL_ALGORITHMS, *EVOLUTION_ALGORITHMS)
 
+#: Domain randomisation's fixed mazes: 8 of the paper's training maze's family, sides 8 to 20,
+#: seeds apart from the evaluation suite's and the validation and unseen mazes'.
+DOMAIN_RANDOMISATION_MAZES = [
+    f"M{31 + i}_{side}x{side}_C1_l.25_L.25_t.5_T.5"
+    for i, side in enumerate((8, 10, 11, 13, 15, 17, 18, 20))
+]
 #: A study's trainer names, with the config fields each sets.
 TRAINERS: dict[str, dict[str, Any]] = {
     "direct": {"regime": "direct"},
@@ -36,6 +49,10 @@ TRAINERS: dict[str, dict[str, Any]] = {
     "edhucat-follow-edens": {"regime": "edhucat", "curator": "follow", "advisor": "edens"},
     "edens": {"regime": "edens"},
     "coevolution": {"regime": "coevolution"},
+    # evolution only: EDEnS choosing how the co-evolved maze population evolves
+    "edens-populations": {"regime": "edens-populations"},
+    # the direct regime on fixed family mazes
+    "domain-randomisation": {"regime": "direct", "mazes": DOMAIN_RANDOMISATION_MAZES},
 }
 
 

@@ -142,7 +142,10 @@ class MazePopulationConfig:
     lightnesses, so that agents that see images (H robots) learn to read more
     than one shape; mutants keep their parent's (a sign kind a mutation adds
     comes from the genome's sign set: arrows). ``None`` (the default): the
-    target's own signs. The validation and unseen mazes keep the target's.
+    target's own signs. The run's validation mazes take the shapes in turn
+    (:attr:`~amaze.runs.coevolution.CoevolutionRun.validation_mazes`); the
+    unseen mazes keep the target's. Robots that read sign values, not images
+    (DD), refuse the option.
     """
 
     capacity: int = 64

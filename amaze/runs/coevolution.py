@@ -95,6 +95,7 @@ from amaze.curriculum.picture import save_population_png
 from amaze.curriculum.validation import unseen_mazes, validation_mazes
 from amaze.evaluation.policy import run_episodes
 from amaze.maze import Maze, as_mazes, rotations
+from amaze.maze.spec import MazeSpec
 from amaze.runs.anytime import Spent
 from amaze.runs.branches import Clock
 from amaze.runs.checkpoint import StateCodec, read_checkpoint, write_checkpoint
@@ -298,9 +299,20 @@ class CoevolutionRun(Run):
 
     @cached_property
     def validation_mazes(self) -> list[str]:
-        """The mazes the champion is chosen on (each played in its 4 rotations)."""
-        c = self.config
-        return validation_mazes(c.target, self.options.validation, c.seed)
+        """The mazes the champion is chosen on (each played in its 4 rotations).
+
+        With the ``shapes`` option, their signs are drawn in those shapes in
+        turn (maze ``i`` in ``shapes[i % len(shapes)]``): a champion chosen on
+        arrows alone would be the best arrow reader, whatever the run trained on.
+        """
+        c, shapes = self.config, self.options.shapes
+        mazes = validation_mazes(c.target, self.options.validation, c.seed)
+        if shapes is None:
+            return mazes
+        return [
+            MazeSpec.from_string(maze).in_shape(shapes[i % len(shapes)]).to_string()
+            for i, maze in enumerate(mazes)
+        ]
 
     # -- the lifecycle's hooks ------------------------------------------------
 

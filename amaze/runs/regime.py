@@ -17,6 +17,7 @@ import json
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from amaze.agents.robot import as_robot
 from amaze.curriculum.advice import NOT_ADVISORS
 from amaze.curriculum.coevolution import CoevolutionError, MazePopulationConfig
 from amaze.curriculum.curators import (
@@ -441,6 +442,11 @@ class RegimeConfig(RunConfig):
                 self.selector = SelectorConfig.from_dict(self.selector).to_dict()
         except CoevolutionError as problem:
             raise self.error(str(problem)) from None
+        if checked.shapes is not None and as_robot(self.robot).discrete_inputs:
+            raise self.error(
+                f"coevolution shapes {list(checked.shapes)!r} have no effect for robot"
+                f" {self.robot}: it reads sign values, not their images (give an H robot)"
+            )
         self.check_coevolution_options(checked)
         self.coevolution = options
 

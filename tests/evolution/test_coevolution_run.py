@@ -240,3 +240,21 @@ def test_a_checkpoint_of_the_older_layout_resumes_bit_identically(tmp_path: Path
     a, b = (json.loads((o / "summary.json").read_text()) for o in (part, whole))
     for key in ("generations", "champion_generation", "agent_generation", "agent_steps"):
         assert a[key] == b[key], key
+
+
+def test_validation_mazes_take_the_shapes_in_turn(tmp_path: Path) -> None:
+    shapes = ["arrow", "point", "star"]
+    config = EvolveConfig.from_dict(
+        {**CONFIG, "robot": "H15", "coevolution": {**CONFIG["coevolution"], "shapes": shapes}}
+    )
+    run = EvolutionCoevolutionRun(tmp_path / "run", config)
+    plain = EvolutionCoevolutionRun(tmp_path / "plain", EvolveConfig.from_dict(CONFIG))
+    assert len(run.validation_mazes) == 4
+    for i, (maze, original) in enumerate(
+        zip(run.validation_mazes, plain.validation_mazes, strict=True)
+    ):
+        spec = MazeSpec.from_string(maze)
+        assert {s.shape for s in (*spec.clue, *spec.lure, *spec.trap)} == {shapes[i % 3]}
+        assert spec.in_shape("arrow").to_string() == original  # the same mazes, redrawn
+    with pytest.raises(EvolutionConfigError, match=r"shapes .* no effect for robot DD"):
+        EvolveConfig.from_dict({**CONFIG, "coevolution": {"shapes": shapes}})

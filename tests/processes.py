@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+import pytest
 
 
 def wait_until(condition: Callable[[], object], timeout: float = 120.0) -> None:
@@ -22,3 +27,19 @@ def process_running(pid: int) -> bool:
     except (OSError, IndexError):
         return False
     return state not in ("Z", "X")
+
+
+def kill_after_rows(argv: list[str], progress: Path, rows: int, cwd: Path) -> None:
+    """Start ``argv``, SIGKILL it once ``progress`` (a CSV) has more than ``rows`` lines.
+
+    Fails the test if the process ends first or takes over two minutes.
+    """
+    process = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not (progress.exists() and len(progress.read_text().splitlines()) > rows):
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            pytest.fail("the run ended before it could be killed")
+        time.sleep(0.002)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()

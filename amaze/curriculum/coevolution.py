@@ -70,7 +70,7 @@ import io
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -98,6 +98,7 @@ __all__ = [
     "MazeRecord",
     "MazeResult",
     "mazes_csv",
+    "options_from_dict",
     "rank_weights",
     "replay_distribution",
     "staleness_weights",
@@ -206,21 +207,32 @@ class MazePopulationConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any] | None) -> MazePopulationConfig:
         """The options of a JSON object: missing keys take their defaults, unknown ones fail."""
-        data = dict(data or {})
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise CoevolutionError(
-                f"unknown coevolution option(s) {', '.join(map(repr, unknown))}"
-                f" (known: {', '.join(sorted(known))})"
-            )
-        return cls(**data)
+        return options_from_dict(cls, data, "coevolution")
 
     def to_dict(self) -> dict[str, Any]:
         data = dataclasses.asdict(self)
         if self.shapes is not None:
             data["shapes"] = list(self.shapes)
         return data
+
+
+_Options = TypeVar("_Options")
+
+
+def options_from_dict(cls: type[_Options], data: Mapping[str, Any] | None, what: str) -> _Options:
+    """The dataclass ``cls`` of a JSON object's options; unknown keys raise, naming ``what``.
+
+    Missing keys take their defaults; the values are checked by ``cls``.
+    """
+    data = dict(data or {})
+    known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise CoevolutionError(
+            f"unknown {what} option(s) {', '.join(map(repr, unknown))}"
+            f" (known: {', '.join(sorted(known))})"
+        )
+    return cls(**data)
 
 
 def _checked_shapes(shapes: object) -> tuple[str, ...]:

@@ -54,7 +54,12 @@ from typing import Any
 
 import numpy as np
 
-from amaze.curriculum.coevolution import CoevolutionError, MazePopulation, MazePopulationConfig
+from amaze.curriculum.coevolution import (
+    CoevolutionError,
+    MazePopulation,
+    MazePopulationConfig,
+    options_from_dict,
+)
 from amaze.curriculum.edens import pareto_front
 from amaze.maze.spec import MIN_SIZE, MazeSpec
 from amaze.validation import check_integer
@@ -133,15 +138,7 @@ class SelectorConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any] | None) -> SelectorConfig:
         """The options of a JSON object: missing keys take their defaults, unknown ones fail."""
-        data = dict(data or {})
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise CoevolutionError(
-                f"unknown selector option(s) {', '.join(map(repr, unknown))}"
-                f" (known: {', '.join(sorted(known))})"
-            )
-        return cls(**data)
+        return options_from_dict(cls, data, "selector")
 
     def to_dict(self) -> dict[str, Any]:
         return {**dataclasses.asdict(self), "criteria": list(self.criteria)}

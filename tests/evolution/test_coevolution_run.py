@@ -4,11 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +22,7 @@ from evolution.cmaes import CMAESConfig
 from evolution.coevolution import EvolutionCoevolutionRun
 from evolution.neat import NeatConfig
 from evolution.run import EvolutionRun, EvolveConfig
+from tests.processes import kill_after_rows
 
 ROOT = Path(__file__).resolve().parents[2]
 #: A tiny coevolution run: small populations of agents and mazes, a checkpoint every generation.
@@ -120,22 +117,9 @@ def test_mazes_csv_holds_every_member_ever(finished: Path) -> None:
 def test_resume_after_a_kill_is_bit_identical(finished: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed"
     config = _write_config(tmp_path)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "evolution.cli", "--config", str(config), "--out", str(out),
-         "--no-progress"],
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )  # fmt: skip
-    deadline = time.monotonic() + 120
-    progress = out / "progress.csv"
-    while not (progress.exists() and len(progress.read_text().splitlines()) > 15):
-        if process.poll() is not None or time.monotonic() > deadline:
-            process.kill()
-            pytest.fail("the run ended before it could be killed")
-        time.sleep(0.002)
-    os.kill(process.pid, signal.SIGKILL)
-    process.wait()
+    argv = [sys.executable, "-m", "evolution.cli", "--config", str(config), "--out", str(out),
+            "--no-progress"]  # fmt: skip
+    kill_after_rows(argv, out / "progress.csv", 15, ROOT)
     assert not (out / "summary.json").exists()
     assert main(["--resume", str(out), "--no-progress"]) == 0
     ours, theirs = read_agent(out / "agent.npz"), read_agent(finished / "agent.npz")

@@ -4,11 +4,8 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +19,7 @@ from evolution.edens_populations import EvolutionEdensPopulationsRun
 from evolution.run import EvolutionRun, EvolveConfig
 from rl_baselines import RLConfigError
 from rl_baselines.config import TrainConfig
+from tests.processes import kill_after_rows
 
 ROOT = Path(__file__).resolve().parents[2]
 #: A tiny run: 3 alternatives of 4 generations per epoch, 30 generations (2 epochs and a half).
@@ -127,21 +125,10 @@ def test_the_same_seed_gives_the_same_choices(finished: Path, tmp_path: Path) ->
 
 def test_resume_after_a_kill_in_an_epoch_is_bit_identical(finished: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "evolution.cli", "--config", str(_write_config(tmp_path)),
-         "--out", str(out), "--no-progress"],
-        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )  # fmt: skip
-    deadline = time.monotonic() + 120
-    progress = out / "progress.csv"
+    argv = [sys.executable, "-m", "evolution.cli", "--config", str(_write_config(tmp_path)),
+            "--out", str(out), "--no-progress"]  # fmt: skip
     # killed in the second alternative of the second epoch, or later
-    while not (progress.exists() and len(progress.read_text().splitlines()) > 18):
-        if process.poll() is not None or time.monotonic() > deadline:
-            process.kill()
-            pytest.fail("the run ended before it could be killed")
-        time.sleep(0.002)
-    os.kill(process.pid, signal.SIGKILL)
-    process.wait()
+    kill_after_rows(argv, out / "progress.csv", 18, ROOT)
     assert not (out / "summary.json").exists()
     assert main(["--resume", str(out), "--no-progress"]) == 0
     ours, theirs = read_agent(out / "agent.npz"), read_agent(finished / "agent.npz")

@@ -138,8 +138,14 @@ class EvolutionCoevolutionRun(CoevolutionRun):
         self.validation  # noqa: B018
 
     def smallest_unit(self) -> tuple[int, str, str]:
-        """The population on a batch's episodes (4 rotations each), at least a step each."""
-        population = len(self.state.algorithm.ask())
+        """The population on a batch's episodes (4 rotations each), at least a step each.
+
+        CMA-ES knows its population size without sampling it (its ``popsize``):
+        the sampling, with its occasional eigendecomposition, is then timed as
+        breeding in :meth:`learn`, not as the loop's own time.
+        """
+        algorithm = self.state.algorithm
+        population = getattr(algorithm, "popsize", None) or len(algorithm.ask())
         episodes = 4 * self.options.batch
         detail = f"{population} individuals on {episodes} episodes, a step each at least"
         return population * episodes, "generation", detail

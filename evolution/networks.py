@@ -87,6 +87,7 @@ __all__ = [
     "SYMMETRIES",
     "NetworkPopulation",
     "NetworkSpec",
+    "rotation_index",
 ]
 
 #: Hidden-layer activations.
@@ -319,15 +320,26 @@ class NetworkSpec:
         sign values of DD robots shifted cyclically, the pooled grid of image
         robots turned by ``np.rot90(grid, -d)`` (row 0 is north).
         """
-        if self.pool is None:
-            sides = np.array([[(d + j) % 4 for j in range(4)] for d in range(4)], dtype=np.int64)
-            return np.concatenate([sides, sides + 4], axis=1)
-        grid = np.arange(self.pool * self.pool, dtype=np.int64).reshape(self.pool, self.pool)
-        return np.stack([np.rot90(grid, -d).ravel() for d in range(4)])
+        return rotation_index(self.pool)
 
     def population(self, params: np.ndarray, *, parallel: bool | None = None) -> NetworkPopulation:
         """The population policy of ``params`` (``(P, n_params)``, one row per individual)."""
         return NetworkPopulation(self, params, parallel=parallel)
+
+
+def rotation_index(side: int | None) -> np.ndarray:
+    """int64 ``(4, n)``: row ``d`` gathers the inputs of the cell turned ``d`` times clockwise.
+
+    ``side`` None: the 8 inputs of DD robots (4 walls, then 4 signs, E, N, W,
+    S), each group shifted cyclically; else a ``side x side`` image (row 0
+    north), turned by ``np.rot90(grid, -d)``. After the gather, side ``d`` of
+    the cell lies east.
+    """
+    if side is None:
+        sides = np.array([[(d + j) % 4 for j in range(4)] for d in range(4)], dtype=np.int64)
+        return np.concatenate([sides, sides + 4], axis=1)
+    grid = np.arange(side * side, dtype=np.int64).reshape(side, side)
+    return np.stack([np.rot90(grid, -d).ravel() for d in range(4)])
 
 
 def _pool_edges(vision: int, pool: int) -> np.ndarray:

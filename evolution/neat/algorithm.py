@@ -71,7 +71,7 @@ class NeatAlgorithm:
         self.config = config
         self.robot = as_robot(robot)
         self.seed = int(seed)
-        n_inputs, n_outputs = robot_io(self.robot)
+        n_inputs, n_outputs = robot_io(self.robot, config.symmetry)  # CC refuses rotations
         self.tracker = InnovationTracker(n_inputs, n_outputs)
         self.species: list[Species] = []
         self.threshold = config.compatibility_threshold
@@ -157,7 +157,7 @@ class NeatAlgorithm:
 
     def population_policy(self, genomes: Sequence[Genome]) -> GenomePopulation:
         """``genomes`` compiled into one population policy (agent ``k`` uses genome ``k // M``)."""
-        return GenomePopulation.from_genomes(genomes, self.robot)
+        return GenomePopulation.from_genomes(genomes, self.robot, symmetry=self.config.symmetry)
 
     def tell(self, genomes: Sequence[Genome], fitness: np.ndarray) -> None:
         """Record the fitness of the asked genomes and breed the next generation."""

@@ -44,6 +44,7 @@ from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, as_robot
 from amaze.validation import check_integer
 from evolution import EvolutionConfigError
+from evolution.networks import SYMMETRIES, rotation_index
 
 __all__ = [
     "ACTIVATIONS",
@@ -81,16 +82,26 @@ N_DISCRETE_INPUTS = 8
 _PARALLEL_MIN_WORK = 20_000
 
 
-def robot_io(robot: Robot | str) -> tuple[int, int]:
+def robot_io(robot: Robot | str, symmetry: str = "none") -> tuple[int, int]:
     """The number of network inputs and outputs of a robot.
 
     8 inputs for discrete-input robots, ``v * v`` pixels for image robots;
     4 outputs (argmax action) for discrete outputs, 2 (accelerations) for
-    continuous ones.
+    continuous ones; 1 with ``symmetry`` ``"rotations"`` (the score of the
+    direction turned east; discrete actions only, others raise).
     """
     robot = as_robot(robot)
     n_inputs = N_DISCRETE_INPUTS if robot.discrete_inputs else int(robot.vision) ** 2
     n_outputs = N_DISCRETE_OUTPUTS if robot.discrete_outputs else N_CONTINUOUS_OUTPUTS
+    if symmetry not in SYMMETRIES:
+        raise EvolutionConfigError(f"symmetry {symmetry!r} is not one of {', '.join(SYMMETRIES)}")
+    if symmetry == "rotations":
+        if not robot.discrete_outputs:
+            raise EvolutionConfigError(
+                f"symmetry 'rotations' needs discrete actions: robot {robot} accelerates"
+                " (give symmetry 'none', or a DD or H robot)"
+            )
+        n_outputs = 1
     return n_inputs, n_outputs
 
 
@@ -109,7 +120,9 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
     index below ``n_inputs``, else ``n_inputs`` + the index of an evaluated
     node), ``weights`` (float64) and ``outputs`` (int64, the evaluated-node
     index of each output). The architecture holds ``type`` ("neat"),
-    ``n_inputs``, ``n_outputs``, ``activations`` and the sizes.
+    ``n_inputs``, ``n_outputs``, ``activations`` and the sizes, and
+    ``symmetry`` ``"rotations"`` for a genome of one output (the score of
+    one direction; a genome for discrete actions otherwise has 4).
     """
     n_inputs, n_outputs = int(genome.n_inputs), int(genome.n_outputs)
     output_ids = [n_inputs + o for o in range(n_outputs)]
@@ -125,6 +138,8 @@ def genome_to_arrays(genome: Any) -> tuple[dict[str, np.ndarray], dict]:
         "n_nodes": len(order),
         "n_connections": len(arrays["sources"]),
     }
+    if n_outputs == 1:
+        architecture["symmetry"] = "rotations"
     return arrays, architecture
 
 
@@ -482,6 +497,8 @@ def _compile_kernel(
 def _checked_architecture(architecture: Any) -> tuple[int, int, list[str]]:
     """``n_inputs``, ``n_outputs`` and ``activations`` of a NEAT architecture, type-checked.
 
+    ``symmetry`` (:func:`architecture_symmetry`) is checked by its own reader.
+
     The architecture comes from a file's JSON metadata: every field is checked
     (positive integers, a list of names; ``n_nodes`` and ``n_connections``, when
     present, non-negative integers) and a bad one raises
@@ -517,6 +534,16 @@ def _checked_architecture(architecture: Any) -> tuple[int, int, list[str]]:
             f"NEAT agent architecture 'activations' {names!r} is not a list of activation names"
         )
     return n_inputs, n_outputs, list(names)
+
+
+def architecture_symmetry(architecture: Mapping[str, Any]) -> str:
+    """The ``symmetry`` of a NEAT architecture: ``"none"`` when absent (older files)."""
+    symmetry = architecture.get("symmetry", "none")
+    if symmetry not in SYMMETRIES:
+        raise EvolutionConfigError(
+            f"NEAT agent architecture 'symmetry' {symmetry!r} is not one of {', '.join(SYMMETRIES)}"
+        )
+    return str(symmetry)
 
 
 def _checked_arrays(
@@ -725,6 +752,13 @@ class GenomePopulation:
     give identical results); ``None`` decides from the batch size and the
     machine's load. Build it with :meth:`from_genomes` or
     :func:`policy_from_arrays`; ``networks`` are arrays of :func:`genome_to_arrays`.
+
+    With ``symmetry`` ``"rotations"`` each genome has one output, the score
+    of the direction that lies east: an observation is played as four rows,
+    the cell turned so that each side in turn lies east
+    (:func:`~evolution.networks.rotation_index`: the 8 inputs of DD robots
+    shifted, the image of H robots turned), and the action is the first best
+    of the four scores, as with :class:`~evolution.networks.NetworkSpec`'s.
     """
 
     def __init__(
@@ -732,10 +766,17 @@ class GenomePopulation:
         networks: Sequence[Mapping[str, np.ndarray]],
         robot: Robot | str,
         *,
+        symmetry: str = "none",
         parallel: bool | None = None,
     ) -> None:
         self.robot = as_robot(robot)
-        self.n_inputs, self.n_outputs = robot_io(self.robot)
+        self.symmetry = symmetry
+        self.n_inputs, self.n_outputs = robot_io(self.robot, symmetry)
+        self._turns = (
+            rotation_index(None if self.robot.discrete_inputs else int(self.robot.vision))
+            if symmetry == "rotations"
+            else None
+        )
         if not networks:
             raise ValueError("a genome population needs at least one genome")
         self.n_policies = len(networks)
@@ -775,21 +816,30 @@ class GenomePopulation:
 
     @classmethod
     def from_genomes(
-        cls, genomes: Sequence[Any], robot: Robot | str, *, parallel: bool | None = None
+        cls,
+        genomes: Sequence[Any],
+        robot: Robot | str,
+        *,
+        symmetry: str = "none",
+        parallel: bool | None = None,
     ) -> GenomePopulation:
-        """Compile NEAT genomes (all for ``robot``) into one population policy."""
+        """Compile NEAT genomes (all for ``robot`` and ``symmetry``) into one population policy."""
         robot = as_robot(robot)
-        n_inputs, n_outputs = robot_io(robot)
+        n_inputs, n_outputs = robot_io(robot, symmetry)
         for genome in genomes:
             if (genome.n_inputs, genome.n_outputs) != (n_inputs, n_outputs):
                 raise EvolutionConfigError(
                     f"a genome with {genome.n_inputs} inputs and {genome.n_outputs} outputs "
                     f"does not fit robot {robot} ({n_inputs} inputs, {n_outputs} outputs)"
                 )
-        return cls(genomes_to_arrays(genomes), robot, parallel=parallel)
+        return cls(genomes_to_arrays(genomes), robot, symmetry=symmetry, parallel=parallel)
 
     def __reduce__(self) -> tuple[Any, ...]:
-        return (type(self), (self.networks, self.robot), {"parallel": self.parallel})
+        return (
+            _rebuild_population,
+            (self.networks, self.robot, self.symmetry),
+            {"parallel": self.parallel},
+        )
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.parallel = state.get("parallel")
@@ -805,7 +855,10 @@ class GenomePopulation:
                 f"subset: give at least one index, each in [0, {self.n_policies})"
             )
         return GenomePopulation(
-            [self.networks[i] for i in indices.tolist()], self.robot, parallel=self.parallel
+            [self.networks[i] for i in indices.tolist()],
+            self.robot,
+            symmetry=self.symmetry,
+            parallel=self.parallel,
         )
 
     def reset(self, n_agents: int) -> None:
@@ -832,10 +885,17 @@ class GenomePopulation:
         return np.ascontiguousarray(obs).reshape(obs.shape[0], v * v)
 
     def outputs(self, observations: np.ndarray) -> np.ndarray:
-        """The output node values, float64 ``(n, n_outputs)``."""
+        """The output node values, float64 ``(n, n_outputs)``; with rotations ``(n, 4)``.
+
+        With rotations, column ``d`` is the genome's output on the cell turned
+        so that side ``d`` (E, N, W, S) lies east.
+        """
         x = self._inputs(observations)
         n = x.shape[0]
         per_genome = self._agents_per_genome(n)
+        if self._turns is not None:  # each agent as 4 consecutive rows, one per direction
+            x = np.ascontiguousarray(x[:, self._turns].reshape(4 * n, -1))
+            per_genome, n = 4 * per_genome, 4 * n
         out = np.empty((n, self.n_outputs), dtype=np.float64)
         parallel = self.parallel
         if parallel is None:
@@ -854,7 +914,7 @@ class GenomePopulation:
             self._out_pos,
             out,
         )
-        return out
+        return out if self._turns is None else out.reshape(n // 4, 4)
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
         """Actions: int64 argmax (E, N, W, S) or float64 accelerations ``(n, 2)``."""
@@ -862,6 +922,13 @@ class GenomePopulation:
         if self.robot.discrete_outputs:
             return np.argmax(out, axis=1).astype(np.int64)
         return out
+
+
+def _rebuild_population(
+    networks: Sequence[Mapping[str, np.ndarray]], robot: Robot | str, symmetry: str
+) -> GenomePopulation:
+    """A pickled :class:`GenomePopulation` rebuilt (its ``symmetry`` is keyword-only)."""
+    return GenomePopulation(networks, robot, symmetry=symmetry)
 
 
 def policy_from_arrays(
@@ -876,11 +943,12 @@ def policy_from_arrays(
     raise :class:`~evolution.EvolutionConfigError`.
     """
     robot = as_robot(robot)
-    n_inputs, n_outputs = robot_io(robot)
     stored_inputs, stored_outputs, _ = _checked_architecture(architecture)
+    symmetry = architecture_symmetry(architecture)
+    n_inputs, n_outputs = robot_io(robot, symmetry)
     if (stored_inputs, stored_outputs) != (n_inputs, n_outputs):
         raise EvolutionConfigError(
             f"a NEAT agent with {stored_inputs} inputs and {stored_outputs} outputs does not"
             f" fit robot {robot} ({n_inputs} inputs, {n_outputs} outputs)"
         )
-    return GenomePopulation([_checked_arrays(arrays, architecture)], robot)
+    return GenomePopulation([_checked_arrays(arrays, architecture)], robot, symmetry=symmetry)

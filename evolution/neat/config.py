@@ -17,6 +17,7 @@ from amaze.runs.config import config_from_dict
 from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
 from evolution.neat.compile import ACTIVATIONS
+from evolution.networks import SYMMETRIES
 
 __all__ = ["NeatConfig"]
 
@@ -83,7 +84,11 @@ class NeatConfig:
     threshold each generation towards that many species, multiplying or dividing
     it by ``1 + threshold_step``. The threshold (1.0, lower than the paper's 3.0)
     suits the normalised distance of genomes of 20 connection genes or more,
-    where weight differences dominate.
+    where weight differences dominate. ``symmetry`` ``"rotations"`` evolves
+    genomes of one output that score each direction on the cell turned that
+    way (:class:`~evolution.neat.compile.GenomePopulation`; robots with
+    discrete actions), as CMA-ES's networks may
+    (:mod:`evolution.networks`, "Symmetry").
     """
 
     population_size: int = 100
@@ -116,6 +121,7 @@ class NeatConfig:
     survival_fraction: float = 0.2
     min_species_size: int = 2
     tournament_size: int = 2
+    symmetry: str = "none"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -134,6 +140,11 @@ class NeatConfig:
                     f"NEAT config '{name}'", value, **bounds, error=EvolutionConfigError
                 )
             setattr(self, name, value)
+        if self.symmetry not in SYMMETRIES:
+            raise EvolutionConfigError(
+                f"NEAT config 'symmetry' must be one of {', '.join(SYMMETRIES)},"
+                f" got {self.symmetry!r}"
+            )
         if self.activation not in ACTIVATIONS:
             raise EvolutionConfigError(
                 f"NEAT config 'activation' must be one of {', '.join(ACTIVATIONS)}, "

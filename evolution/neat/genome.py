@@ -171,7 +171,7 @@ def new_genome(robot: Robot | str, tracker: InnovationTracker, config: NeatConfi
     keeping at least one connection. Draws from ``random``.
     """
     robot = as_robot(robot)
-    n_inputs, n_outputs = robot_io(robot)
+    n_inputs, n_outputs = robot_io(robot, config.symmetry)
     genome = Genome(n_inputs, n_outputs)
     for i in range(n_inputs):
         genome.nodes[i] = NodeGene(i, "input", 0.0, "identity")

@@ -170,6 +170,23 @@ def test_neat_in_the_coevolution_regime(tmp_path: Path) -> None:
     assert read_agent(out / "agent.npz")[1]["architecture"]["type"] != "mlp"
 
 
+def test_neat_with_one_genome_for_the_four_directions(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    options = {"population_size": 12, "symmetry": "rotations"}
+    config = _write_config(tmp_path, algo="neat", max_generations=3, algorithm=options)
+    out = tmp_path / "neat"
+    assert main(["--config", str(config), "--out", str(out), "--no-progress"]) == 0
+    architecture = read_agent(out / "agent.npz")[1]["architecture"]
+    assert architecture["symmetry"] == "rotations" and architecture["n_outputs"] == 1
+    load_agent(out / "agent.npz")  # amaze run and evaluate can play it
+    capsys.readouterr()
+    refused = _write_config(tmp_path, algo="neat", robot="CC5", algorithm=options)
+    assert main(["--config", str(refused), "--out", str(tmp_path / "cc"), "--no-progress"]) == 2
+    assert "needs discrete actions" in capsys.readouterr().err
+    assert not (tmp_path / "cc").exists()
+
+
 def test_coevolution_fills_the_cmaes_options_it_is_not_given() -> None:
     config = EvolveConfig.from_dict({"regime": "coevolution"})
     assert config.algorithm["network"]["hidden"] == [16] and config.algorithm["restarts"] == 16

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import random
 from collections import defaultdict
@@ -61,15 +62,18 @@ def reference_outputs(genome: Genome, inputs: np.ndarray) -> list[float]:
     return [value(genome.n_inputs + o) for o in range(genome.n_outputs)]
 
 
-def grown_genomes(robot: str, count: int, steps: int, seed: int) -> list[Genome]:
+def grown_genomes(
+    robot: str, count: int, steps: int, seed: int, symmetry: str = "none"
+) -> list[Genome]:
     """Genomes after many mutations (structural ones included), from a shared tracker."""
     random.seed(seed)
-    tracker = InnovationTracker(*robot_io(robot))
+    config = dataclasses.replace(GROWING, symmetry=symmetry)
+    tracker = InnovationTracker(*robot_io(robot, symmetry))
     genomes = []
     for _ in range(count):
-        genome = new_genome(robot, tracker, GROWING)
+        genome = new_genome(robot, tracker, config)
         for _ in range(steps):
-            mutate(genome, GROWING, tracker)
+            mutate(genome, config, tracker)
         genomes.append(genome)
     return genomes
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import pickle
 import random
 
 import numpy as np
@@ -20,6 +21,7 @@ from evolution.neat import (
     policy_from_arrays,
 )
 from evolution.neat.compile import genomes_to_arrays
+from evolution.networks import rotation_index
 from tests.evolution.neat.conftest import grown_genomes, reference_outputs
 
 
@@ -151,3 +153,50 @@ def test_population_compilation_refuses_a_cycle():
         genome_to_arrays(genome)
     with pytest.raises(ValueError, match="cycle"):
         genomes_to_arrays([grown_genomes("DD", 1, 3, seed=4)[0], genome])
+
+
+@pytest.mark.parametrize("robot", ["DD", "H5"])
+def test_rotations_score_each_direction_on_the_cell_turned_that_way(robot: str) -> None:
+    genomes = grown_genomes(robot, count=3, steps=25, seed=5, symmetry="rotations")
+    assert {g.n_outputs for g in genomes} == {1}
+    policy = GenomePopulation.from_genomes(genomes, robot, symmetry="rotations")
+    rng = np.random.default_rng(2)
+    n = 3 * 40
+    if robot == "DD":
+        obs = rng.random((n, 8)).astype(np.float32)
+        cells, scaled = obs, obs.astype(np.float64)
+    else:
+        obs = rng.integers(0, 256, (n, 1, 5, 5), dtype=np.uint8)
+        cells, scaled = obs.reshape(n, 25), obs.reshape(n, 25).astype(np.float64) / 255.0
+    turns = rotation_index(None if robot == "DD" else 5)
+    outputs = policy.outputs(obs)
+    assert outputs.shape == (n, 4)
+    expected = [
+        [reference_outputs(genomes[k // 40], scaled[k][turns[d]])[0] for d in range(4)]
+        for k in range(n)
+    ]
+    np.testing.assert_allclose(outputs, expected, rtol=1e-12, atol=1e-12)
+    # turn the cell: the action turns with it
+    actions = policy(obs)
+    for r in range(1, 4):
+        turned = cells[:, turns[r]].reshape(obs.shape)
+        np.testing.assert_array_equal(policy(turned), (actions - r) % 4)
+
+
+def test_a_symmetric_agent_file_round_trips_and_pickles() -> None:
+    genomes = grown_genomes("DD", count=2, steps=20, seed=6, symmetry="rotations")
+    arrays, architecture = genome_to_arrays(genomes[1])
+    assert architecture["symmetry"] == "rotations" and architecture["n_outputs"] == 1
+    architecture = json.loads(json.dumps(architecture))
+    alone = policy_from_arrays(arrays, architecture, "DD")
+    obs = np.random.default_rng(3).random((20, 8)).astype(np.float32)
+    together = GenomePopulation.from_genomes(genomes, "DD", symmetry="rotations")
+    np.testing.assert_array_equal(alone(obs), together(np.concatenate([obs] * 2))[20:])
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(together))(obs[:2]), together(obs[:2]))
+    np.testing.assert_array_equal(together.subset([1])(obs), alone(obs))
+    with pytest.raises(EvolutionConfigError, match="'symmetry' 'sideways'"):
+        policy_from_arrays(arrays, {**architecture, "symmetry": "sideways"}, "DD")
+    with pytest.raises(EvolutionConfigError, match="1 outputs"):
+        policy_from_arrays(arrays, {k: v for k, v in architecture.items() if k != "symmetry"}, "DD")
+    with pytest.raises(EvolutionConfigError, match="needs discrete actions"):
+        GenomePopulation.from_genomes(genomes, "CC5", symmetry="rotations")

@@ -37,6 +37,7 @@ def test_config_round_trip_and_validation():
         ("target_species", -1, "non-negative integer"),
         ("weight_max", float("inf"), "finite"),
         ("tournament_size", 2.0, "positive integer"),
+        ("symmetry", "mirror", "none, rotations"),
     ],
 )
 def test_bad_values_are_named_with_what_was_expected(key, value, expected):

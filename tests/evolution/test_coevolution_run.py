@@ -193,7 +193,11 @@ def test_coevolution_fills_the_cmaes_options_it_is_not_given() -> None:
     mine = EvolveConfig.from_dict({"regime": "coevolution", "algorithm": {"restarts": 2}})
     assert mine.algorithm["network"]["hidden"] == [16] and mine.algorithm["restarts"] == 2
     neat = EvolveConfig.from_dict({"regime": "coevolution", "algo": "neat"}).algorithm
-    assert neat == NeatConfig().to_dict()  # NEAT's own defaults, recorded
+    # NEAT's own defaults, recorded, with genomes shared by the directions
+    assert neat == {**NeatConfig().to_dict(), "symmetry": "rotations"}
+    older = {k: v for k, v in NeatConfig().to_dict().items() if k != "symmetry"}
+    kept = EvolveConfig.from_dict({"regime": "coevolution", "algo": "neat", "algorithm": older})
+    assert kept.algorithm["symmetry"] == "none"  # a config.json from before the option
     direct = EvolveConfig.from_dict({}).algorithm  # the direct regime keeps CMA-ES's defaults
     assert direct == CMAESConfig().to_dict() and direct["network"]["hidden"] == []
     assert direct["network"]["symmetry"] == "none"
@@ -207,6 +211,8 @@ def test_coevolution_shares_the_network_across_directions_for_discrete_actions(
 ) -> None:
     config = EvolveConfig.from_dict({"regime": "coevolution", "robot": robot})
     assert config.algorithm["network"]["symmetry"] == symmetry
+    neat = EvolveConfig.from_dict({"regime": "coevolution", "robot": robot, "algo": "neat"})
+    assert neat.algorithm["symmetry"] == symmetry
     # a network given whole (as an older config.json gives it) is taken as it is
     given = {"hidden": [16], "activation": "tanh", "pool": None}
     older = EvolveConfig.from_dict(

@@ -62,8 +62,9 @@ def coevolution_neat(robot: str) -> dict[str, Any]:
     """The coevolution regime's NEAT options for ``robot``: genomes shared by the directions.
 
     :data:`COEVOLUTION_SYMMETRY` for robots with discrete actions (at 40 M
-    env steps, DD, 3 seeds, it lifted NEAT's median suite success from 0.403
-    to 1.000; docs/regimes/coevolution.md, "Measured"); nothing for the others.
+    env steps, DD, on the same 3 seeds, it lifted NEAT's median suite success
+    from 0.403 to 1.000; docs/regimes/coevolution.md, "Measured"); nothing for
+    the others.
     """
     return {"symmetry": COEVOLUTION_SYMMETRY} if as_robot(robot).discrete_outputs else {}
 

@@ -430,7 +430,7 @@ class CoevolutionRun(Run):
         save_population_png(s.mazes, self.out / "population.png", title)
         save_coevolution_plot(
             self.progress, self.out / "coevolution.png", c.target, self.batch_plot,
-            title=f"{c.algo}, coevolution, seed {c.seed}",
+            title=f"{c.algo}, {c.regime}, seed {c.seed}",
         )  # fmt: skip
 
     @classmethod

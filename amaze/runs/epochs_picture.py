@@ -37,10 +37,11 @@ def save_epochs_plot(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     spec = MazeSpec.from_string(target)
     longest = max(spec.width, spec.height)
-    figure, (judged, fractions, sizes) = plt.subplots(3, 1, figsize=(7, 8), dpi=110, sharex=True)
+    figure, (judged, fractions, sizes) = plt.subplots(3, 1, figsize=(9, 8), dpi=110, sharex=True)
     epochs = np.array([d["epoch"] for d in decisions], dtype=float)
     width = max(len(decisions[0]["alternatives"]) if decisions else 1, 1)
     for d in decisions:
@@ -55,22 +56,26 @@ def save_epochs_plot(
     judged.plot([], [], "o", ms=9, mfc="none", color="k", label="chosen")
     judged.set_ylabel("validation success")
     judged.set_ylim(-0.05, 1.05)
+    # each chosen controller holds over the next epoch: the steps end one epoch after the last
     chosen = [d["alternatives"][d["chosen"]]["controller"] for d in decisions]
+    chosen = chosen + chosen[-1:]
+    spans = np.append(epochs, epochs[-1] + 1) if len(epochs) else epochs
     for name in _FRACTIONS:
-        fractions.step(epochs, [c[name] for c in chosen], where="post", label=name)
+        fractions.step(spans, [c[name] for c in chosen], where="post", label=name)
     regret = [float(c["score"] == "regret") for c in chosen]
-    fractions.step(epochs, regret, ":", where="post", color="k", label="score is regret")
+    fractions.step(spans, regret, ":", where="post", color="k", label="score is regret")
     fractions.set_ylabel("chosen controller")
     fractions.set_ylim(-0.05, 1.05)
     for name in _INTEGERS:
         values = [longest if c[name] is None else c[name] for c in chosen]
-        sizes.step(epochs, values, where="post", label=name)
+        sizes.step(spans, values, where="post", label=name)
     sizes.set_ylabel("sides, edits")
     sizes.set_xlabel("epoch")
+    sizes.xaxis.set_major_locator(MaxNLocator(integer=True))
     for axes in (judged, fractions, sizes):
         axes.grid(alpha=0.3)
         if axes.get_legend_handles_labels()[0]:
-            axes.legend(loc="best", fontsize=7, ncol=2)
+            axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     if title:
         judged.set_title(title)
     figure.tight_layout()

@@ -28,7 +28,10 @@ nor any training maze's (:func:`~amaze.curriculum.validation.validation_mazes`).
 Every ``validation_every``-th round the trainer plays its round's agents
 there (evolution: the ``validation_candidates`` best on the batch; RL: its
 one agent), 4 rotations each; the champion is the best there so far (the
-earliest on ties), the agent the run hands over (``agent_rule``
+latest on ties: validation saturates, at R̄ 1.000 on every validation maze,
+long before the run ends, and a later agent equal there has learnt from more
+mazes; with the earliest, one run kept from generation 133 of 2 691 an agent
+that solved 0.833 of the suite), the agent the run hands over (``agent_rule``
 ``best-validation``). The suite itself is never looked at before the end.
 ``summary.json`` also reports the champion on other family mazes no part of
 the run played (``unseen_success_rate``, ``unseen_normalized_reward``;
@@ -498,7 +501,7 @@ class CoevolutionRun(Run):
         s.validation_steps += checked.env_steps
         if self.validation_spends_budget:
             s.steps += checked.env_steps
-        if fitness > s.champion_fitness:
+        if fitness >= s.champion_fitness:  # the latest on ties (the module docstring)
             s.champion_fitness, s.champion_success_rate = fitness, success_rate
             s.champion_round, s.champion_steps = s.round, s.steps
             self.keep_champion(candidates, best)

@@ -265,3 +265,17 @@ def test_validation_mazes_take_the_shapes_in_turn(tmp_path: Path) -> None:
         assert spec.in_shape("arrow").to_string() == original  # the same mazes, redrawn
     with pytest.raises(EvolutionConfigError, match=r"shapes .* no effect for robot DD"):
         EvolveConfig.from_dict({**CONFIG, "coevolution": {"shapes": shapes}})
+
+
+def test_the_champion_is_the_latest_best_on_validation(tmp_path: Path) -> None:
+    # an easy target: validation saturates at R̄ 1.0 within a few generations
+    config = _write_config(tmp_path, target="M3_5x5_U", max_generations=12)
+    out = tmp_path / "easy"
+    assert main(["--config", str(config), "--out", str(out), "--no-progress"]) == 0
+    rows = [r for r in _progress(out) if r["validation"] != "nan"]
+    best = max(float(r["validation"]) for r in rows)
+    tied = [int(r["generation"]) for r in rows if float(r["validation"]) == best]
+    assert best == 1.0 and len(tied) >= 2
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["champion_generation"] == tied[-1]
+    assert read_agent(out / "agent.npz")[1]["generation"] == tied[-1]

@@ -264,7 +264,8 @@ def test_an_interrupted_run_says_what_is_saved_and_how_to_resume(
     tmp_path: Path, sent: int, status: int, words: str
 ) -> None:
     out = tmp_path / "run"
-    config = _config("cmaes", max_generations=None, budget_seconds=120)
+    # a budget far longer than the wait below: the signal always finds the run training
+    config = _config("cmaes", max_generations=None, budget_seconds=900)
     (tmp_path / "config.json").write_text(json.dumps(config))
     command = [sys.executable, "-m", "evolution.cli", "--config", str(tmp_path / "config.json")]
     process = subprocess.Popen(
@@ -273,10 +274,13 @@ def test_an_interrupted_run_says_what_is_saved_and_how_to_resume(
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # a shell's background job ignores SIGINT, and a child inherits that: restore it
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     deadline = time.monotonic() + 120
     while not (out / "checkpoints" / "state.npz").exists() and time.monotonic() < deadline:
         time.sleep(0.05)
+    assert process.poll() is None, "the run ended before it could be interrupted"
     process.send_signal(sent)
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == status
@@ -285,7 +289,7 @@ def test_an_interrupted_run_says_what_is_saved_and_how_to_resume(
         f" checkpoint saved; resume with: amaze-evolve --resume {out}"
     ]
     # not a terminal: plain progress lines on standard output
-    assert "cmaes direct seed 0: 0% of 120 s; 0.0s elapsed; started" in stdout.replace(
+    assert "cmaes direct seed 0: 0% of 900 s; 0.0s elapsed; started" in stdout.replace(
         "0.1s", "0.0s"
     )
 

@@ -9,7 +9,10 @@ process per regime and seed, each on its own with the same algorithm
 (CMA-ES with one 16-unit hidden layer of four outputs and 16 IPOP restarts,
 :data:`ALGORITHM`, or ``--algo neat`` with its defaults; ``--algorithm`` with
 ``"symmetry": "rotations"`` in its network gives the coevolution regime's
-own default, the network shared by the four directions):
+own default, the network shared by the four directions). NEAT's defaults
+differ by regime: the coevolution regimes share its genomes across the
+directions, the others do not; ``--algorithm '{"symmetry": "none"}'`` (or
+``"rotations"``) makes them the same everywhere:
 
 * ``dr``: domain randomisation, the direct regime on 8 fixed mazes of the
   target's family (``M31_8x8 ... M38_20x20``, ``C1_l.25_L.25_t.5_T.5``);

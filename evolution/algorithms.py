@@ -24,7 +24,13 @@ from evolution import EvolutionConfigError
 if TYPE_CHECKING:
     from evolution.population import PopulationPolicy
 
-__all__ = ["ALGORITHMS", "SearchAlgorithm", "algorithm_class", "make_algorithm"]
+__all__ = [
+    "ALGORITHMS",
+    "SearchAlgorithm",
+    "algorithm_class",
+    "make_algorithm",
+    "population_size",
+]
 
 
 @runtime_checkable
@@ -149,3 +155,14 @@ def make_algorithm(name: str, options: Mapping[str, Any], robot: str, seed: int)
     """
     cls = algorithm_class(name)
     return cls(cls.config_class.from_dict(options), robot, seed)
+
+
+def population_size(algorithm: SearchAlgorithm) -> int:
+    """The candidates of the algorithm's next generation.
+
+    CMA-ES knows it without sampling them (its ``popsize``): the sampling, with
+    its occasional eigendecomposition, then happens where the generation asks,
+    and is timed there; other algorithms are asked.
+    """
+    size = getattr(algorithm, "popsize", None)
+    return int(size) if size is not None else len(algorithm.ask())

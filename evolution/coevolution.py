@@ -51,7 +51,7 @@ from amaze.runs.branches import Clock
 from amaze.runs.checkpoint import StateCodec
 from amaze.runs.coevolution import BatchResults, CoevolutionRun, CoevolutionState, Validation
 from amaze.runs.coevolution_picture import Curve
-from evolution.algorithms import SearchAlgorithm, make_algorithm
+from evolution.algorithms import SearchAlgorithm, make_algorithm, population_size
 from evolution.backends import current_backend
 from evolution.checkpoint import evolution_codec
 from evolution.config import EvolveConfig
@@ -140,12 +140,10 @@ class EvolutionCoevolutionRun(CoevolutionRun):
     def smallest_unit(self) -> tuple[int, str, str]:
         """The population on a batch's episodes (4 rotations each), at least a step each.
 
-        CMA-ES knows its population size without sampling it (its ``popsize``):
-        the sampling, with its occasional eigendecomposition, is then timed as
-        breeding in :meth:`learn`, not as the loop's own time.
+        The population's size (:func:`~evolution.algorithms.population_size`)
+        needs no sampling: CMA-ES samples in :meth:`learn`, timed as breeding.
         """
-        algorithm = self.state.algorithm
-        population = getattr(algorithm, "popsize", None) or len(algorithm.ask())
+        population = population_size(self.state.algorithm)
         episodes = 4 * self.options.batch
         detail = f"{population} individuals on {episodes} episodes, a step each at least"
         return population * episodes, "generation", detail

@@ -63,7 +63,7 @@ from amaze.runs.checkpoint import StateCodec, read_checkpoint, write_checkpoint
 from amaze.validation import check_number
 from evolution import EvolutionConfigError
 from evolution.agent_file import policy_from_agent_arrays, save_agent
-from evolution.algorithms import SearchAlgorithm, make_algorithm
+from evolution.algorithms import SearchAlgorithm, make_algorithm, population_size
 from evolution.backends import Backend, current_backend
 from evolution.checkpoint import evolution_codec
 from evolution.population import FITNESS, EvaluationBackend, PopulationResult, fewest_steps
@@ -286,7 +286,7 @@ class EvolutionLearner:
 
     def generation_steps(self, mazes: Sequence[str]) -> int:
         """The fewest env steps a generation of the algorithm can spend on ``mazes`` (as given)."""
-        return len(self.algorithm.ask()) * _fewest_steps(tuple(mazes), self.robot)
+        return population_size(self.algorithm) * _fewest_steps(tuple(mazes), self.robot)
 
     def _evaluator(self, mazes: tuple[str, ...]) -> EvaluationBackend:
         """The evaluator of ``mazes`` on the current backend (kept while both stay the same)."""

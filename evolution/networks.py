@@ -87,6 +87,7 @@ __all__ = [
     "SYMMETRIES",
     "NetworkPopulation",
     "NetworkSpec",
+    "check_symmetry",
     "rotation_index",
 ]
 
@@ -171,15 +172,7 @@ class NetworkSpec:
                 "pool", pool, minimum=1, maximum=int(robot.vision), error=EvolutionConfigError
             )
             object.__setattr__(self, "pool", pool)
-        if self.symmetry not in SYMMETRIES:
-            raise EvolutionConfigError(
-                f"symmetry {self.symmetry!r} is not one of {', '.join(SYMMETRIES)}"
-            )
-        if self.symmetry == "rotations" and not robot.discrete_outputs:
-            raise EvolutionConfigError(
-                f"symmetry 'rotations' needs discrete actions: robot {robot} accelerates"
-                " (give symmetry 'none', or a DD or H robot)"
-            )
+        check_symmetry(self.symmetry, robot)
 
     # -- description ----------------------------------------------------------
 
@@ -325,6 +318,22 @@ class NetworkSpec:
     def population(self, params: np.ndarray, *, parallel: bool | None = None) -> NetworkPopulation:
         """The population policy of ``params`` (``(P, n_params)``, one row per individual)."""
         return NetworkPopulation(self, params, parallel=parallel)
+
+
+def check_symmetry(symmetry: object, robot: Robot | None = None, name: str = "symmetry") -> str:
+    """``symmetry`` if it is one of :data:`SYMMETRIES`, fit for ``robot`` when one is given.
+
+    ``"rotations"`` needs discrete actions. ``name`` names the value in the
+    error (:class:`~evolution.EvolutionConfigError`).
+    """
+    if symmetry not in SYMMETRIES:
+        raise EvolutionConfigError(f"{name} {symmetry!r} is not one of {', '.join(SYMMETRIES)}")
+    if symmetry == "rotations" and robot is not None and not robot.discrete_outputs:
+        raise EvolutionConfigError(
+            f"symmetry 'rotations' needs discrete actions: robot {robot} accelerates"
+            " (give symmetry 'none', or a DD or H robot)"
+        )
+    return str(symmetry)
 
 
 def rotation_index(side: int | None) -> np.ndarray:

@@ -80,7 +80,7 @@ from amaze.runs.config import RunConfig
 from amaze.runs.folder import ProgressLog
 from amaze.runs.lifecycle import Run, RunResult
 from evolution import EvolutionConfigError
-from evolution.algorithms import SearchAlgorithm, make_algorithm
+from evolution.algorithms import SearchAlgorithm, make_algorithm, population_size
 from evolution.backends import current_backend
 from evolution.checkpoint import evolution_codec
 from evolution.config import EvolveConfig
@@ -162,7 +162,7 @@ class EvolutionRun(GenerationLoop):
     def generation_steps(self) -> tuple[int, str]:
         """The population, each individual on the training mazes' rotations by shortest paths."""
         c = self.config
-        population = len(self.state.algorithm.ask())
+        population = population_size(self.state.algorithm)
         steps = population * fewest_steps(rotations(c.mazes), c.robot)
         return steps, f"{population} individuals on {4 * len(c.mazes)} episodes"
 

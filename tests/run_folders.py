@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import importlib.util
 import json
 import shutil
@@ -88,3 +89,22 @@ def refused_resume(
     assert len(err) == 1 and err[0].startswith("error: "), err
     assert snapshot(out) == before
     return err[0]
+
+
+def write_config(folder: Path, config: dict, **changes: object) -> Path:
+    """``config`` with ``changes``, written as ``folder/config-in.json`` (for ``--config``)."""
+    path = folder / "config-in.json"
+    path.write_text(json.dumps({**config, **changes}))
+    return path
+
+
+def timeless_progress(out: Path) -> list[dict[str, str]]:
+    """The rows of an evolution run's ``progress.csv`` without the columns of seconds.
+
+    Two runs of one config and seed have equal rows; their seconds differ.
+    """
+    with open(out / "progress.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    for row in rows:
+        del row["seconds"], row["eval_seconds"]
+    return rows

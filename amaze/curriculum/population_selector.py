@@ -71,6 +71,7 @@ __all__ = [
     "SelectorConfig",
     "SelectorState",
     "choose",
+    "controller_of",
     "criteria_values",
     "mutate_controller",
     "selector_rng",
@@ -189,6 +190,12 @@ def mutate_controller(
     if values["min_size"] > values["max_size"]:
         values["min_size"], values["max_size"] = values["max_size"], values["min_size"]
     return MazePopulationConfig.from_dict(values), names
+
+
+def controller_of(config: MazePopulationConfig) -> dict[str, Any]:
+    """The :data:`CONTROLLER_FIELDS` of ``config``, as JSON (``epochs.jsonl``, ``summary.json``)."""
+    values = config.to_dict()
+    return {name: values[name] for name in CONTROLLER_FIELDS}
 
 
 def difficulty_reached(mazes: MazePopulation) -> float:

@@ -61,11 +61,11 @@ import numpy as np
 
 from amaze.curriculum.coevolution import MazePopulation
 from amaze.curriculum.population_selector import (
-    CONTROLLER_FIELDS,
     Outcome,
     SelectorConfig,
     SelectorState,
     choose,
+    controller_of,
     criteria_values,
     mutate_controller,
     selector_rng,
@@ -225,7 +225,8 @@ class EdensPopulationsRun(CoevolutionRun):
             mutate_controller(parent, c.target, rng, options.mutations)
             for _ in range(options.alternatives - 1)
         ]
-        selection.parent_learner = copy.deepcopy(self.learner())
+        # the state now is the parent, kept as it is: each alternative plays a copy of it
+        selection.parent_learner = self.learner()
         selection.parent_mazes = s.mazes
         selection.controllers = [parent, *(config for config, _ in mutants)]
         selection.mutated = [(), *(names for _, names in mutants)]
@@ -295,7 +296,7 @@ class EdensPopulationsRun(CoevolutionRun):
                 "alternatives": [
                     {
                         "index": o.index,
-                        "controller": {k: o.controller.to_dict()[k] for k in CONTROLLER_FIELDS},
+                        "controller": controller_of(o.controller),
                         "mutated": list(o.mutated),
                         **{k: round(v, 6) for k, v in o.criteria.items()},
                         "extinct": o.index not in living,
@@ -346,7 +347,7 @@ class EdensPopulationsRun(CoevolutionRun):
                 if selection.under_way
                 else None
             ),
-            "controller": {k: self.state.mazes.config.to_dict()[k] for k in CONTROLLER_FIELDS},
+            "controller": controller_of(self.state.mazes.config),
             "chosen_alternatives": counts.tolist(),
         }
 

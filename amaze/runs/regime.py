@@ -422,13 +422,19 @@ class RegimeConfig(RunConfig):
         """Refuse population ``options`` this trainer cannot run (any, here)."""
 
     def _check_coevolution(self) -> None:
-        """The co-evolution config, checked here alone: ``coevolution`` and the trainer's fit.
+        """The co-evolution configs, checked here alone: ``coevolution``, ``selector``, the fit.
 
-        ``coevolution`` is a JSON object, set in that regime only; the
-        trainer's defaults (:meth:`coevolution_defaults`) fill what it leaves
-        out (``config.json`` then records them); the whole is a valid
-        :class:`~amaze.curriculum.coevolution.MazePopulationConfig`, which
-        the trainer's options must fit (:meth:`check_coevolution_options`).
+        ``coevolution`` and ``selector`` are JSON objects (set in another
+        regime, they were refused with the other options there). In the
+        coevolution regimes the trainer's defaults (:meth:`coevolution_defaults`)
+        fill what ``coevolution`` leaves out (``config.json`` then records
+        them); the whole is a valid
+        :class:`~amaze.curriculum.coevolution.MazePopulationConfig`, which the
+        robot (``shapes`` need an image robot) and the trainer's options must fit
+        (:meth:`check_coevolution_options`); in ``edens-populations`` the
+        ``selector`` is a valid
+        :class:`~amaze.curriculum.population_selector.SelectorConfig`, recorded
+        with its defaults.
         """
         for name in ("coevolution", "selector"):
             if not isinstance(getattr(self, name), dict):

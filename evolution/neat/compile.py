@@ -44,7 +44,7 @@ from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, as_robot
 from amaze.validation import check_integer
 from evolution import EvolutionConfigError
-from evolution.networks import SYMMETRIES, rotation_index
+from evolution.networks import check_symmetry, rotation_index
 
 __all__ = [
     "ACTIVATIONS",
@@ -93,14 +93,7 @@ def robot_io(robot: Robot | str, symmetry: str = "none") -> tuple[int, int]:
     robot = as_robot(robot)
     n_inputs = N_DISCRETE_INPUTS if robot.discrete_inputs else int(robot.vision) ** 2
     n_outputs = N_DISCRETE_OUTPUTS if robot.discrete_outputs else N_CONTINUOUS_OUTPUTS
-    if symmetry not in SYMMETRIES:
-        raise EvolutionConfigError(f"symmetry {symmetry!r} is not one of {', '.join(SYMMETRIES)}")
-    if symmetry == "rotations":
-        if not robot.discrete_outputs:
-            raise EvolutionConfigError(
-                f"symmetry 'rotations' needs discrete actions: robot {robot} accelerates"
-                " (give symmetry 'none', or a DD or H robot)"
-            )
+    if check_symmetry(symmetry, robot) == "rotations":
         n_outputs = 1
     return n_inputs, n_outputs
 
@@ -538,12 +531,9 @@ def _checked_architecture(architecture: Any) -> tuple[int, int, list[str]]:
 
 def architecture_symmetry(architecture: Mapping[str, Any]) -> str:
     """The ``symmetry`` of a NEAT architecture: ``"none"`` when absent (older files)."""
-    symmetry = architecture.get("symmetry", "none")
-    if symmetry not in SYMMETRIES:
-        raise EvolutionConfigError(
-            f"NEAT agent architecture 'symmetry' {symmetry!r} is not one of {', '.join(SYMMETRIES)}"
-        )
-    return str(symmetry)
+    return check_symmetry(
+        architecture.get("symmetry", "none"), name="NEAT agent architecture 'symmetry'"
+    )
 
 
 def _checked_arrays(

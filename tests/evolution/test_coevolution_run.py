@@ -23,6 +23,7 @@ from evolution.coevolution import EvolutionCoevolutionRun
 from evolution.neat import NeatConfig
 from evolution.run import EvolutionRun, EvolveConfig
 from tests.processes import kill_after_rows
+from tests.run_folders import timeless_progress, write_config
 
 ROOT = Path(__file__).resolve().parents[2]
 #: A tiny coevolution run: small populations of agents and mazes, a checkpoint every generation.
@@ -37,22 +38,12 @@ CONFIG = {
 
 
 def _write_config(folder: Path, **changes: object) -> Path:
-    path = folder / "config-in.json"
-    path.write_text(json.dumps({**CONFIG, **changes}))
-    return path
+    return write_config(folder, CONFIG, **changes)
 
 
 def _mazes_csv(out: Path) -> list[dict[str, str]]:
     with open(out / "mazes.csv", newline="") as handle:
         return list(csv.DictReader(handle))
-
-
-def _progress(out: Path) -> list[dict[str, str]]:
-    with open(out / "progress.csv", newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    for row in rows:  # seconds differ from run to run
-        del row["seconds"], row["eval_seconds"]
-    return rows
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +100,7 @@ def test_mazes_csv_holds_every_member_ever(finished: Path) -> None:
             assert 0 <= int(row["parent"]) < int(row["id"])
         if row["retired"]:
             assert int(row["birth"]) <= int(row["retired"]) <= 40
-    progress = _progress(finished)
+    progress = timeless_progress(finished)
     assert [int(r["generation"]) for r in progress] == list(range(1, 41))
     assert sum(int(r["admitted"]) for r in progress) == len(rows)
 
@@ -126,7 +117,7 @@ def test_resume_after_a_kill_is_bit_identical(finished: Path, tmp_path: Path) ->
     assert ours[0].keys() == theirs[0].keys()
     assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in ours[0])
     assert _mazes_csv(out) == _mazes_csv(finished)
-    assert _progress(out) == _progress(finished)
+    assert timeless_progress(out) == timeless_progress(finished)
     a, b = (json.loads((o / "summary.json").read_text()) for o in (out, finished))
     for key in ("env_steps", "success_rate", "unseen_success_rate", "champion_generation"):
         assert a[key] == b[key], key
@@ -243,7 +234,8 @@ def test_a_checkpoint_of_the_older_layout_resumes_bit_identically(tmp_path: Path
     assert main(["--resume", str(part), "--no-progress"]) == 0
     ours, theirs = read_agent(part / "agent.npz"), read_agent(whole / "agent.npz")
     assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in theirs[0])
-    assert _progress(part) == _progress(whole) and _mazes_csv(part) == _mazes_csv(whole)
+    assert timeless_progress(part) == timeless_progress(whole)
+    assert _mazes_csv(part) == _mazes_csv(whole)
     a, b = (json.loads((o / "summary.json").read_text()) for o in (part, whole))
     for key in ("generations", "champion_generation", "agent_generation", "agent_steps"):
         assert a[key] == b[key], key
@@ -272,7 +264,7 @@ def test_the_champion_is_the_latest_best_on_validation(tmp_path: Path) -> None:
     config = _write_config(tmp_path, target="M3_5x5_U", max_generations=12)
     out = tmp_path / "easy"
     assert main(["--config", str(config), "--out", str(out), "--no-progress"]) == 0
-    rows = [r for r in _progress(out) if r["validation"] != "nan"]
+    rows = [r for r in timeless_progress(out) if r["validation"] != "nan"]
     best = max(float(r["validation"]) for r in rows)
     tied = [int(r["generation"]) for r in rows if float(r["validation"]) == best]
     assert best == 1.0 and len(tied) >= 2

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import subprocess
 import sys
@@ -20,6 +19,7 @@ from evolution.run import EvolutionRun, EvolveConfig
 from rl_baselines import RLConfigError
 from rl_baselines.config import TrainConfig
 from tests.processes import kill_after_rows
+from tests.run_folders import timeless_progress, write_config
 
 ROOT = Path(__file__).resolve().parents[2]
 #: A tiny run: 3 alternatives of 4 generations per epoch, 30 generations (2 epochs and a half).
@@ -35,17 +35,7 @@ CONFIG = {
 
 
 def _write_config(folder: Path, **changes: object) -> Path:
-    path = folder / "config-in.json"
-    path.write_text(json.dumps({**CONFIG, **changes}))
-    return path
-
-
-def _progress(out: Path) -> list[dict[str, str]]:
-    with open(out / "progress.csv", newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    for row in rows:  # seconds differ from run to run
-        del row["seconds"], row["eval_seconds"]
-    return rows
+    return write_config(folder, CONFIG, **changes)
 
 
 def _epochs(out: Path) -> list[dict]:
@@ -68,7 +58,7 @@ def test_a_run_plays_epochs_of_alternatives(finished: Path) -> None:
     assert summary["selector"]["criteria"] == list(DEFAULT_CRITERIA)
     assert sum(summary["chosen_alternatives"]) == 2
     assert set(summary["controller"]) == set(CONTROLLER_FIELDS)
-    progress = _progress(finished)
+    progress = timeless_progress(finished)
     assert [int(r["generation"]) for r in progress] == list(range(1, 31))
     # each alternative plays 4 generations in turn, its last one validated
     assert [int(r["alternative"]) for r in progress[:12]] == [0] * 4 + [1] * 4 + [2] * 4
@@ -85,7 +75,7 @@ def test_epochs_jsonl_records_every_alternative_and_the_pick(finished: Path) -> 
     epochs = _epochs(finished)
     assert [e["epoch"] for e in epochs] == [0, 1]
     assert [e["generation"] for e in epochs] == [12, 24]
-    progress = _progress(finished)
+    progress = timeless_progress(finished)
     for epoch in epochs:
         alternatives = epoch["alternatives"]
         assert [a["index"] for a in alternatives] == [0, 1, 2]
@@ -120,7 +110,7 @@ def test_the_same_seed_gives_the_same_choices(finished: Path, tmp_path: Path) ->
     out = tmp_path / "again"
     assert main(["--config", str(_write_config(tmp_path)), "--out", str(out), "--no-progress"]) == 0
     assert _epochs(out) == _epochs(finished)
-    assert _progress(out) == _progress(finished)
+    assert timeless_progress(out) == timeless_progress(finished)
 
 
 def test_resume_after_a_kill_in_an_epoch_is_bit_identical(finished: Path, tmp_path: Path) -> None:
@@ -134,7 +124,7 @@ def test_resume_after_a_kill_in_an_epoch_is_bit_identical(finished: Path, tmp_pa
     ours, theirs = read_agent(out / "agent.npz"), read_agent(finished / "agent.npz")
     assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in ours[0])
     assert _epochs(out) == _epochs(finished)
-    assert _progress(out) == _progress(finished)
+    assert timeless_progress(out) == timeless_progress(finished)
     assert (out / "mazes.csv").read_text() == (finished / "mazes.csv").read_text()
 
 

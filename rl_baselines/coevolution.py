@@ -55,6 +55,7 @@ continuation, not a bit-identical replay.
 from __future__ import annotations
 
 import os
+from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -80,7 +81,7 @@ from rl_baselines.config import TrainConfig
 from rl_baselines.learner import new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
 
-__all__ = ["SB3CoevolutionRun"]
+__all__ = ["EndedEpisodes", "RLCoevolutionRun", "SB3CoevolutionRun", "named_checkpoint"]
 
 PROGRESS_FIELDS = (
     "round", "steps", "seconds", "batch_success_rate", *CoevolutionRun.population_fields,
@@ -112,61 +113,103 @@ class _State(CoevolutionState):
         return attributes
 
 
-def _play(mazes: list[Maze], agent: SB3Agent) -> EpisodeResults:
+def _play(mazes: list[Maze], agent: Any) -> EpisodeResults:
     """One episode of ``agent`` in each of ``mazes``."""
     return run_episodes(BatchEngine(mazes, agent.robot, len(mazes)), agent)
 
 
-class RoundEpisodes(BaseCallback):
-    """The episodes each environment ended while the model learned (from SB3's ``infos``).
+@dataclass(frozen=True)
+class EndedEpisodes:
+    """The episodes each environment ended while the learner learned on a round's mazes.
 
-    Environment ``k`` plays maze ``k`` of the round (one per rotation), so its
-    episodes are that maze's.
+    ``count``, ``successes`` and ``normalized_reward`` (their sum) are
+    ``(n_envs,)``; environment ``k`` plays maze ``k`` of the round (one per
+    rotation), so its episodes are that maze's.
     """
 
-    def __init__(self, n_envs: int) -> None:
-        super().__init__()
-        self.success: list[list[float]] = [[] for _ in range(n_envs)]
-        self.normalized_reward: list[list[float]] = [[] for _ in range(n_envs)]
-
-    def _on_step(self) -> bool:
-        for env, info in enumerate(self.locals["infos"]):
-            if "success" in info:  # an episode ended
-                self.success[env].append(float(info["success"]))
-                self.normalized_reward[env].append(float(info["normalized_reward"]))
-        return True
+    count: np.ndarray
+    successes: np.ndarray
+    normalized_reward: np.ndarray
 
     def scores(self, played: EpisodeResults) -> tuple[np.ndarray, np.ndarray]:
         """``(1, mazes)`` success shares and mean R̄: of the round's episodes where a
         maze has some, else of the deterministic episode ``played``."""
         success = played.success.astype(np.float64)
         reward = played.normalized_reward.astype(np.float64)
-        for env, ended in enumerate(self.success):
-            if ended:
-                success[env] = np.mean(ended)
-                reward[env] = np.mean(self.normalized_reward[env])
+        ended = self.count > 0
+        success[ended] = self.successes[ended] / self.count[ended]
+        reward[ended] = self.normalized_reward[ended] / self.count[ended]
         return success[None], reward[None]
 
 
-class SB3CoevolutionRun(CoevolutionRun):
-    """Rounds of rollouts on a batch of a co-evolving maze population."""
+class RoundEpisodes(BaseCallback):
+    """The episodes each environment ended while an SB3 model learned (from SB3's ``infos``)."""
+
+    def __init__(self, n_envs: int) -> None:
+        super().__init__()
+        self.count = np.zeros(n_envs, dtype=np.int64)
+        self.successes = np.zeros(n_envs)
+        self.normalized_reward = np.zeros(n_envs)
+
+    def _on_step(self) -> bool:
+        for env, info in enumerate(self.locals["infos"]):
+            if "success" in info:  # an episode ended
+                self.count[env] += 1
+                self.successes[env] += float(info["success"])
+                self.normalized_reward[env] += float(info["normalized_reward"])
+        return True
+
+    def ended(self) -> EndedEpisodes:
+        return EndedEpisodes(self.count, self.successes, self.normalized_reward)
+
+
+class RLCoevolutionRun(CoevolutionRun):
+    """Rounds of rollouts on a batch of a co-evolving maze population, whatever the framework.
+
+    A framework supplies its learner (:meth:`new_state`, :meth:`restore_learner`,
+    :meth:`save_learner`), the rollout size, and a round's training
+    (:meth:`set_round_mazes`, :meth:`train_round`, :meth:`agent_now`); this
+    class sizes the rounds, scores the batch, validates and keeps the champion.
+    """
 
     config_class = TrainConfig
     config: TrainConfig
-    state: _State
-    state_class = _State
     agent_file = "agent.zip"
     position_field = "round"
     progress_fields = PROGRESS_FIELDS
-    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", *CoevolutionRun.outputs, "tensorboard/")
     time_parts = ("learning", "scoring")
     validation_spends_budget = False  # the budget is training steps
     batch_plot = ("success on the batch", (Curve("batch_success_rate", "the agent"),))
 
-    def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
-        super().__init__(out, config)
-        torch.set_num_threads(1)
-        self.model: BaseAlgorithm | None = None
+    # -- the framework's part ---------------------------------------------------
+
+    @property
+    @abstractmethod
+    def rollout(self) -> int:
+        """Env steps of a round's rollout (``n_steps x n_envs``)."""
+
+    @property
+    @abstractmethod
+    def n_steps(self) -> int:
+        """Steps of each environment in a rollout."""
+
+    @abstractmethod
+    def set_round_mazes(self, mazes: list[Maze]) -> int:
+        """Put the environments in ``mazes`` (one each, from a fresh start); their
+        longest deadline in whole steps."""
+
+    @abstractmethod
+    def train_round(self, rollouts: int) -> EndedEpisodes:
+        """Learn from ``rollouts`` rollouts on the round's mazes; the episodes they ended.
+
+        The learner's env steps are then in ``state.steps``.
+        """
+
+    @abstractmethod
+    def agent_now(self) -> Any:
+        """The policy now, acting deterministically (``save`` writes an SB3 agent)."""
+
+    # -- the loop's hooks ---------------------------------------------------------
 
     @cached_property
     def validation(self) -> list[Maze]:
@@ -174,29 +217,110 @@ class SB3CoevolutionRun(CoevolutionRun):
         return as_mazes(rotations(self.validation_mazes))
 
     @property
-    def rollout(self) -> int:
-        """Env steps of a round's rollout (``n_steps x n_envs``)."""
-        assert self.model is not None
-        return int(self.model.n_steps) * self.config.n_envs
-
-    @property
     def champion_file(self) -> Path:
         """The best agent on the validation mazes so far (at the top in older run folders)."""
         legacy = self.out / "champion.zip"
         return legacy if legacy.exists() else self.checkpoints / "champion.zip"
 
-    def _env(self, mazes: list[Maze]) -> SB3VecEnv:
+    def round_rollouts(self, deadline: int) -> int:
+        """The rollouts of a round whose longest episode may last ``deadline`` steps:
+        enough for it to end."""
+        return max(1, -(-int(deadline) // self.n_steps))
+
+    def smallest_unit(self) -> tuple[int, str, str]:
+        """One rollout: ``n_steps x n_envs`` env steps."""
+        rollout, n_envs = self.rollout, self.config.n_envs
+        return rollout, "rollout", f"n_steps {rollout // n_envs} x n_envs {n_envs}"
+
+    def checkpoint_due(self, steps: int, seconds: float) -> bool:
+        return steps >= self.config.eval_every
+
+    def learn(self, mazes: list[Maze], clock: Clock) -> BatchResults:
+        """Rollouts on the batch (their episodes score it), then the agent plays each maze once."""
+        c, s = self.config, self.state
+        rollouts = self.round_rollouts(self.set_round_mazes(mazes))
+        if c.budget_steps is not None:  # whole rollouts, never past the budget
+            rollouts = min(rollouts, (c.budget_steps - s.steps) // self.rollout)
+        ended = self.train_round(rollouts)
+        clock.lap("learning")
+        agent = self.agent_now()
+        played = _play(mazes, agent)
+        s.scoring_steps += int(played.steps.sum())
+        clock.lap("scoring")
+        success, reward = ended.scores(played)
+        figures = {"batch_success_rate": float(played.success.mean())}
+        return BatchResults(success, reward, [agent], figures)
+
+    def validate(self, candidates: Sequence[Any]) -> Validation:
+        """The agent on the validation mazes; its fitness is its mean R̄ there."""
+        checked = _play(self.validation, candidates[0])
+        return Validation(
+            np.array([checked.normalized_reward.mean()]),
+            np.array([checked.success.mean()]),
+            int(checked.steps.sum()),
+        )
+
+    def keep_champion(self, candidates: Sequence[Any], index: int) -> None:
+        candidates[index].save(self.champion_file)
+
+    def check_champion(self) -> None:
+        """A damaged champion of a resumed run is refused here, by name."""
+        if self.champion_file.exists() or self.champion_file.is_symlink():
+            SB3Agent.load(self.champion_file)
+
+    # -- the lifecycle's hooks ------------------------------------------------
+
+    def final_agent(self) -> SB3Agent:
+        if not self.champion_file.exists():
+            raise RLConfigError("the run played no round: it has no champion")
+        return SB3Agent.load(self.champion_file)
+
+    def save_agent(self, agent: SB3Agent, path: Path) -> None:
+        agent.save(path)
+
+    def own_figures(self) -> dict[str, Any]:
+        s = self.state
+        return {
+            "framework": self.config.framework,
+            "scoring_steps": s.scoring_steps,
+            "champion_validation_normalized_reward": s.champion_fitness,
+        }
+
+
+class SB3CoevolutionRun(RLCoevolutionRun):
+    """The co-evolution rounds of an SB3 model."""
+
+    state: _State
+    state_class = _State
+    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", *CoevolutionRun.outputs, "tensorboard/")
+
+    def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
+        super().__init__(out, config)
+        torch.set_num_threads(1)
+        self.model: BaseAlgorithm | None = None
+        self._env: SB3VecEnv | None = None
+
+    @property
+    def rollout(self) -> int:
+        return self.n_steps * self.config.n_envs
+
+    @property
+    def n_steps(self) -> int:
+        assert self.model is not None
+        return int(self.model.n_steps)
+
+    def _new_env(self, mazes: list[Maze]) -> SB3VecEnv:
         c = self.config
         return SB3VecEnv(mazes, c.robot, c.n_envs, c.seed)
 
     def _first_env(self) -> SB3VecEnv:
         """The environment a model is built with: the target's rotations (replaced every round)."""
-        return self._env(as_mazes(rotations(self.config.target)) * (self.config.n_envs // 4))
+        return self._new_env(as_mazes(rotations(self.config.target)) * (self.config.n_envs // 4))
 
     def _tensorboard_dir(self) -> str | None:
         return str(self.out / "tensorboard") if self.config.tensorboard else None
 
-    # -- the loop's hooks -----------------------------------------------------
+    # -- the framework's part ---------------------------------------------------
 
     def new_state(self, mazes: MazePopulation) -> _State:
         c = self.config
@@ -212,12 +336,7 @@ class SB3CoevolutionRun(CoevolutionRun):
     def restore_learner(self, state: CoevolutionState) -> None:
         """The model the state names, and a look at the champion (a damaged one is refused)."""
         assert isinstance(state, _State)
-        where = f"checkpoint {str(self.checkpoint)!r}"
-        model_file = self.checkpoints / state.model_file
-        if not state.model_file or model_file.parent != self.checkpoints:
-            raise RLConfigError(f"{where} names no model file of its folder")
-        if not model_file.exists():
-            raise RLConfigError(f"checkpoint file {str(model_file)!r} is missing")
+        model_file = named_checkpoint(self, state.model_file)
         self.model = load_sb3_model(
             model_file,
             self.config.algo,
@@ -226,32 +345,17 @@ class SB3CoevolutionRun(CoevolutionRun):
             tensorboard_log=self._tensorboard_dir(),
         )
         self.model.num_timesteps = state.steps
-        if self.champion_file.exists() or self.champion_file.is_symlink():
-            SB3Agent.load(self.champion_file)  # a damaged champion is refused here, by name
+        self.check_champion()
 
-    def round_rollouts(self, env: SB3VecEnv) -> int:
-        """The rollouts of a round on ``env``'s mazes: enough for its longest episode to end."""
+    def set_round_mazes(self, mazes: list[Maze]) -> int:
         assert self.model is not None
-        longest = int(np.ceil(env.engine.tables.deadline.max()))
-        return max(1, -(-longest // int(self.model.n_steps)))
+        self._env = self._new_env(mazes)
+        self.model.set_env(self._env)
+        return int(np.ceil(self._env.engine.tables.deadline.max()))
 
-    def smallest_unit(self) -> tuple[int, str, str]:
-        """One rollout: ``n_steps x n_envs`` env steps."""
-        rollout, n_envs = self.rollout, self.config.n_envs
-        return rollout, "rollout", f"n_steps {rollout // n_envs} x n_envs {n_envs}"
-
-    def checkpoint_due(self, steps: int, seconds: float) -> bool:
-        return steps >= self.config.eval_every
-
-    def learn(self, mazes: list[Maze], clock: Clock) -> BatchResults:
-        """Rollouts on the batch (their episodes score it), then the agent plays each maze once."""
-        c, s, model = self.config, self.state, self.model
-        assert model is not None
-        env = self._env(mazes)
-        model.set_env(env)
-        rollouts = self.round_rollouts(env)
-        if c.budget_steps is not None:  # whole rollouts, never past the budget
-            rollouts = min(rollouts, (c.budget_steps - s.steps) // self.rollout)
+    def train_round(self, rollouts: int) -> EndedEpisodes:
+        model, env = self.model, self._env
+        assert model is not None and env is not None
         episodes = RoundEpisodes(env.num_envs)
         model.learn(
             total_timesteps=rollouts * self.rollout,
@@ -259,27 +363,12 @@ class SB3CoevolutionRun(CoevolutionRun):
             reset_num_timesteps=False,
             tb_log_name="coevolution",
         )
-        s.steps = int(model.num_timesteps)
-        clock.lap("learning")
-        agent = SB3Agent(model, c.robot, c.algo)
-        played = _play(mazes, agent)
-        s.scoring_steps += int(played.steps.sum())
-        clock.lap("scoring")
-        success, reward = episodes.scores(played)
-        figures = {"batch_success_rate": float(played.success.mean())}
-        return BatchResults(success, reward, [agent], figures)
+        self.state.steps = int(model.num_timesteps)
+        return episodes.ended()
 
-    def validate(self, candidates: Sequence[Any]) -> Validation:
-        """The agent on the validation mazes; its fitness is its mean R̄ there."""
-        checked = _play(self.validation, candidates[0])
-        return Validation(
-            np.array([checked.normalized_reward.mean()]),
-            np.array([checked.success.mean()]),
-            int(checked.steps.sum()),
-        )
-
-    def keep_champion(self, candidates: Sequence[Any], index: int) -> None:
-        candidates[index].save(self.champion_file)
+    def agent_now(self) -> SB3Agent:
+        assert self.model is not None
+        return SB3Agent(self.model, self.config.robot, self.config.algo)
 
     def round_done(self, row: Mapping[str, Any]) -> None:
         """The round's figures in TensorBoard (``coevolution/<key>``), beside SB3's."""
@@ -306,19 +395,13 @@ class SB3CoevolutionRun(CoevolutionRun):
             if old.name != self.state.model_file:
                 old.unlink()
 
-    # -- the lifecycle's hooks ------------------------------------------------
 
-    def final_agent(self) -> SB3Agent:
-        if not self.champion_file.exists():
-            raise RLConfigError("the run played no round: it has no champion")
-        return SB3Agent.load(self.champion_file)
-
-    def save_agent(self, agent: SB3Agent, path: Path) -> None:
-        agent.save(path)
-
-    def own_figures(self) -> dict[str, Any]:
-        s = self.state
-        return {
-            "scoring_steps": s.scoring_steps,
-            "champion_validation_normalized_reward": s.champion_fitness,
-        }
+def named_checkpoint(run: CoevolutionRun, name: str) -> Path:
+    """The file or folder of ``run``'s checkpoints that its state names, checked to be there."""
+    where = f"checkpoint {str(run.checkpoint)!r}"
+    path = run.checkpoints / name
+    if not name or path.parent != run.checkpoints:
+        raise RLConfigError(f"{where} names no model file of its folder")
+    if not (path.exists() or path.is_symlink()):
+        raise RLConfigError(f"checkpoint file {str(path)!r} is missing")
+    return path

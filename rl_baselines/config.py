@@ -4,7 +4,8 @@
 ``regime`` is ``direct`` (:class:`rl_baselines.train.SB3Run`), ``interpolation``,
 ``edhucat`` or ``edens`` (the curriculum loop, :class:`rl_baselines.curriculum.SB3CurriculumRun`),
 with ``curator``, ``stages``, ``branches`` and ``target`` for the curricula, or
-``coevolution`` (:class:`rl_baselines.coevolution.SB3CoevolutionRun`).
+``coevolution`` (:class:`rl_baselines.coevolution.SB3CoevolutionRun`, or with the jax framework
+:class:`rl_baselines.jax_coevolution.JaxCoevolutionRun`).
 
 **Rollouts of a curriculum** (:func:`fitted_hyperparameters`). A curriculum
 gives each branch ``budget_steps / (K * S)`` steps (the paper's split), which
@@ -135,8 +136,7 @@ class TrainConfig(RegimeConfig):
     def _check_framework(self) -> None:
         """The jax framework: its regimes, its robots, no TensorBoard, its hyperparameters.
 
-        What the JAX learners do not implement is refused, never ignored: the
-        co-evolution regime (its loop trains SB3 models), robots with
+        What the JAX learners do not implement is refused, never ignored: robots with
         continuous actions, TensorBoard logs, and SB3 hyperparameters they
         lack or values they do not take
         (:func:`~rl_baselines.jax.hyperparameters.checked_hyperparameters`:
@@ -148,11 +148,6 @@ class TrainConfig(RegimeConfig):
             )
         if self.framework != "jax":
             return
-        if self.regime == "coevolution":
-            raise RLConfigError(
-                "framework jax (--framework jax) does not run the coevolution regime"
-                " (--regime coevolution) yet: use --framework sb3 for it"
-            )
         robot = as_robot(self.robot)
         if not robot.discrete_outputs:
             raise RLConfigError(

@@ -6,10 +6,11 @@
 are handed to :class:`rl_baselines.curriculum.SB3CurriculumRun` (the
 curriculum loop with an SB3 learner) by :meth:`SB3Run.run_class_for`, so
 :func:`train`, :func:`resume` and ``amaze-train`` take every regime.
-With ``framework`` ``jax`` the same regimes (coevolution aside) train with
-SB3's algorithms compiled with JAX: :class:`rl_baselines.jax_run.JaxRun`
-(direct) and :class:`rl_baselines.curriculum.JaxCurriculumRun`; what both
-direct runs share is :class:`rl_baselines.direct.DirectRun`.
+With ``framework`` ``jax`` the same regimes train with SB3's algorithms
+compiled with JAX: :class:`rl_baselines.jax_run.JaxRun` (direct),
+:class:`rl_baselines.curriculum.JaxCurriculumRun` and
+:class:`rl_baselines.jax_coevolution.JaxCoevolutionRun`; what both direct runs
+share is :class:`rl_baselines.direct.DirectRun`.
 
 The **direct** regime (paper §4): the agent trains on ``mazes`` (default:
 :data:`~amaze.evaluation.suite.PAPER_TRAINING_MAZE`) in their 4 rotations
@@ -177,8 +178,9 @@ class SB3Run(DirectRun):
 
         SB3: :class:`SB3CurriculumRun` for the curriculum regimes,
         :class:`SB3CoevolutionRun` for coevolution, this class for direct.
-        JAX (``framework`` jax): :class:`~rl_baselines.curriculum.JaxCurriculumRun`
-        or :class:`~rl_baselines.jax_run.JaxRun` (the config refuses coevolution).
+        JAX (``framework`` jax): :class:`~rl_baselines.curriculum.JaxCurriculumRun`,
+        :class:`~rl_baselines.jax_coevolution.JaxCoevolutionRun` or
+        :class:`~rl_baselines.jax_run.JaxRun`.
         """
         jax = getattr(config, "framework", "sb3") == "jax"
         if getattr(config, "is_curriculum", False):
@@ -186,6 +188,10 @@ class SB3Run(DirectRun):
 
             return JaxCurriculumRun if jax else SB3CurriculumRun
         if getattr(config, "regime", None) == "coevolution":
+            if jax:
+                from rl_baselines.jax_coevolution import JaxCoevolutionRun
+
+                return JaxCoevolutionRun
             from rl_baselines.coevolution import SB3CoevolutionRun
 
             return SB3CoevolutionRun

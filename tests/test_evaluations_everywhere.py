@@ -1,10 +1,10 @@
 """Every regime of every trainer writes the same ``evaluations.csv``, on the same evaluation set.
 
-Each regime x algorithm (A2C and PPO of both frameworks, sb3 and jax; jax
-runs no coevolution) runs at a tiny budget with 4 anytime points; the file
-must have the same columns everywhere, every point in order (the in-loop
-ones and the final agent's), counts that only grow, and the digest of the
-one evaluation set every run of the same family shares.
+Each regime x algorithm (A2C and PPO of both frameworks, sb3 and jax) runs
+at a tiny budget with 4 anytime points; the file must have the same columns
+everywhere, every point in order (the in-loop ones and the final agent's),
+counts that only grow, and the digest of the one evaluation set every run of
+the same family shares.
 """
 
 from __future__ import annotations
@@ -55,8 +55,6 @@ def _options(algo: str, regime: str) -> dict:
 @pytest.mark.parametrize("algo", ["cmaes", "neat", "a2c", "ppo", "a2c-jax", "ppo-jax"])
 @pytest.mark.parametrize("regime", REGIMES)
 def test_every_run_folder_has_the_same_evaluations(tmp_path: Path, regime: str, algo: str) -> None:
-    if algo.endswith("-jax") and regime == "coevolution":
-        pytest.skip("the jax framework does not run the coevolution regime (refused)")
     if algo not in EVOLUTION and regime == "edens-populations":
         pytest.skip("RL does not run the edens-populations regime (refused)")
     config = tmp_path / "options.json"

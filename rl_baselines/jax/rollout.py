@@ -18,7 +18,9 @@ environment's params are gathered once per rollout, and again (under a
 ``lax.cond``) only at steps where an episode ended and mazes cycle.
 
 The episode figures of every episode that ends (``success``, R̄, length, return)
-are summed per rollout for logging (:class:`EpisodeSums`).
+are summed per rollout and environment (:class:`EpisodeSums`): for logging, and
+for co-evolution, where environment ``k`` plays maze ``k`` of a round and its
+episodes score that maze.
 """
 
 from __future__ import annotations
@@ -68,7 +70,8 @@ class Rollout(NamedTuple):
 
 
 class EpisodeSums(NamedTuple):
-    """Sums over the episodes that ended in a rollout: count, successes, R̄, length, return."""
+    """Sums over the episodes that ended in a rollout, per environment (``(n_envs,)`` each):
+    count, successes, R̄, length, return."""
 
     episodes: jax.Array
     successes: jax.Array
@@ -136,13 +139,13 @@ def _next_mazes(
 
 
 def _episode_sums(info: dict[str, jax.Array], done: jax.Array) -> EpisodeSums:
-    """The figures of the episodes ending at one step, summed over environments."""
+    """The figures of the episodes ending at one step, per environment (zero where none)."""
 
     def total(x: jax.Array, dtype: jnp.dtype) -> jax.Array:
-        return jnp.sum(jnp.where(done, x, 0).astype(dtype))
+        return jnp.where(done, x, 0).astype(dtype)
 
     return EpisodeSums(
-        episodes=jnp.sum(done.astype(jnp.int32)),
+        episodes=done.astype(jnp.int32),
         successes=total(info["success"], jnp.int32),
         normalized_reward=total(info["normalized_reward"], jnp.float32),
         length=total(info["steps"], jnp.int32),
@@ -194,7 +197,8 @@ def collect_rollout(
         sums = jax.tree.map(jnp.add, sums, _episode_sums(info, done))
         return (carry, params, sums), record
 
-    zero = EpisodeSums(jnp.int32(0), jnp.int32(0), jnp.float32(0), jnp.int32(0), jnp.float32(0))
+    zeros = jnp.zeros(hp.n_envs, jnp.int32), jnp.zeros(hp.n_envs, jnp.float32)
+    zero = EpisodeSums(zeros[0], zeros[0], zeros[1], zeros[0], zeros[1])
     params = _gather(maze_params, carry.maze_index)
     keys = jax.random.split(key, hp.n_steps)
     (carry, _, sums), rollout = jax.lax.scan(one_step, (carry, params, zero), keys)

@@ -95,8 +95,9 @@ class TrainState(NamedTuple):
 class RolloutStats(NamedTuple):
     """One rollout's figures (each an array with one entry per rollout of a call).
 
-    The episodes that ended during the rollout: their count, successes and the
-    sums of their R̄, lengths and returns; the update's figures as SB3 logs them
+    The episodes that ended during the rollout, per environment (``(n_envs,)``
+    per rollout): their count, successes and the sums of their R̄, lengths and
+    returns; the update's figures as SB3 logs them
     (:class:`rl_baselines.jax.update.UpdateStats`).
     """
 
@@ -190,8 +191,8 @@ def train_step(
         key=jax.random.key_data(key),
         envs=envs,
         rollouts=state.rollouts + 1,
-        episodes=state.episodes + sums.episodes,
-        successes=state.successes + sums.successes,
+        episodes=state.episodes + jnp.sum(sums.episodes),
+        successes=state.successes + jnp.sum(sums.successes),
     )
     return new, RolloutStats(*sums, *update)
 

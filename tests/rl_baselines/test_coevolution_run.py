@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
-from amaze.maze import rotations
+from amaze.maze import as_mazes, rotations
 from amaze.runs.checkpoint import StateCodec, curriculum_classes, read_checkpoint, write_checkpoint
 from rl_baselines import RLConfigError
 from rl_baselines.cli import main
@@ -192,9 +192,10 @@ def test_a_round_lasts_as_long_as_the_longest_episode_of_its_mazes(tmp_path: Pat
     config = TrainConfig.from_dict({"algo": "a2c", "regime": "coevolution", "budget_steps": 100})
     run = SB3CoevolutionRun(tmp_path / "run", config)
     run.new_state(None)  # the model; no population needed here
-    env = SB3VecEnv(rotations("M4_5x5_C1"), "DD", 4)
-    deadline = int(np.ceil(env.engine.tables.deadline.max()))
-    assert deadline > 5 and run.round_rollouts(env) == -(-deadline // 5)
+    deadline = run.set_round_mazes(as_mazes(rotations("M4_5x5_C1")))
+    engine = SB3VecEnv(rotations("M4_5x5_C1"), "DD", 4).engine
+    assert deadline == int(np.ceil(engine.tables.deadline.max())) > 5
+    assert run.round_rollouts(deadline) == -(-deadline // 5)
 
 
 def test_a_rounds_episodes_score_its_mazes_and_fill_in_for_those_without() -> None:
@@ -213,6 +214,6 @@ def test_a_rounds_episodes_score_its_mazes_and_fill_in_for_those_without() -> No
         success=np.array([False, True, False, False]),
         normalized_reward=np.array([-9.0, 0.5, -9.0, -7.0]),
     )
-    success, reward = episodes.scores(greedy)
+    success, reward = episodes.ended().scores(greedy)
     np.testing.assert_array_equal(success, [[1.0, 1.0, 0.5, 0.0]])
     np.testing.assert_array_equal(reward, [[1.0, 0.5, -1.5, -7.0]])

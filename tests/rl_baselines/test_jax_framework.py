@@ -1,4 +1,5 @@
-"""``amaze-train --framework jax``: the JAX learners in the direct and curriculum regimes.
+"""``amaze-train --framework jax``: the JAX learners in the direct, curriculum and
+co-evolution regimes.
 
 * a direct run writes the SB3 run's folder (progress, anytime evaluations,
   summary, checkpoint, ``agent.zip`` + ``agent.json``), and its ``agent.zip``
@@ -7,9 +8,11 @@
   resumed ends with the very agent, bit for bit, of one never interrupted;
 * an EDHuCAT run (careful curator, 2 stages) does the same, through the
   learner protocol (:class:`~rl_baselines.jax_learner.JaxLearner`);
+* a co-evolution run writes its folder, compiles once for mazes of every
+  size, and killed and resumed ends with the very agent, population and
+  progress of one never interrupted;
 * options without effect with jax are refused in one line (exit 2):
-  ``--tensorboard``, the coevolution regime, continuous robots, SB3-only
-  hyperparameters.
+  ``--tensorboard``, continuous robots, SB3-only hyperparameters.
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from amaze.cli.main import main as amaze_main
 from rl_baselines.agent import SB3Agent
 from rl_baselines.cli import main
 from rl_baselines.curriculum import JaxCurriculumRun
-from rl_baselines.jax.trainer import JaxTrainer
+from rl_baselines.jax.trainer import JaxTrainer, run_rollouts
+from rl_baselines.jax_coevolution import JaxCoevolutionRun
 from rl_baselines.jax_run import JaxRun
 from rl_baselines.train import SB3Run, TrainConfig, resume
 
@@ -41,6 +45,10 @@ CURRICULUM = ["--framework", "jax", "--algo", "ppo", "--regime", "edhucat", "--c
 CURRICULUM += ["careful", "--stages", "2", "--branches", "2", "--target", MAZE]
 CURRICULUM += ["--budget-steps", "768", "--eval-every", "64", "--evaluation-points", "4"]
 CURRICULUM += ["--evaluation-family", "1", "--seed", "2", "--no-progress"]
+COEVOLUTION = ["--framework", "jax", "--algo", "a2c", "--regime", "coevolution"]
+COEVOLUTION += ["--target", "M4_6x6_C1", "--budget-steps", "8000", "--eval-every", "40"]
+COEVOLUTION += ["--evaluation-points", "3", "--evaluation-family", "1", "--seed", "4"]
+COEVOLUTION += ["--no-progress"]
 PPO = {"n_steps": 16, "batch_size": 32, "n_epochs": 2}
 
 
@@ -93,7 +101,11 @@ def _rows(path: Path, columns: tuple[str, ...]) -> list[tuple[str, ...]]:
 
 
 def test_the_jax_framework_picks_the_jax_runs() -> None:
-    for regime, run_class in [("direct", JaxRun), ("edhucat", JaxCurriculumRun)]:
+    for regime, run_class in [
+        ("direct", JaxRun),
+        ("edhucat", JaxCurriculumRun),
+        ("coevolution", JaxCoevolutionRun),
+    ]:
         config = TrainConfig.from_dict({"regime": regime, "framework": "jax"})
         assert SB3Run.run_class_for(config) is run_class
         assert config.tensorboard is False
@@ -164,10 +176,69 @@ def test_a_killed_jax_curriculum_resumes_to_the_same_agents_bit_for_bit(
     assert _rows(whole / "progress.csv", columns) == _rows(cut / "progress.csv", columns)
 
 
+def _coevolution_options(tmp_path: Path) -> list[str]:
+    """Small population options: rounds on one maze of 5 or 6 cells a side, validation every 2."""
+    path = tmp_path / "coevolution.json"
+    options = {"validation": 2, "validation_every": 2, "min_size": 5}
+    path.write_text(json.dumps({"coevolution": options}))
+    return ["--config", str(path)]
+
+
+def test_a_jax_coevolution_run_writes_its_folder_and_compiles_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "run"
+    sizes: set[str] = set()
+    set_mazes = JaxTrainer.set_mazes
+
+    def recording(self: JaxTrainer, mazes: Any) -> None:
+        set_mazes(self, mazes)
+        sizes.update(maze.split("_")[1] for maze in self.mazes)
+
+    monkeypatch.setattr(JaxTrainer, "set_mazes", recording)
+    compiled = run_rollouts._cache_size()
+    assert main([*COEVOLUTION, *_coevolution_options(tmp_path), "--out", str(out)]) == 0
+    for name in ("progress.csv", "mazes.csv", "evaluations.csv", "agent.zip", "summary.json"):
+        assert (out / name).is_file(), name
+    assert not (out / "tensorboard").exists()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["framework"] == "jax" and summary["max_cells"] == 36
+    assert summary["env_steps"] <= 8000 and summary["scoring_steps"] > 0
+    assert summary["mazes_ever"] >= 1
+    rows = _rows(out / "progress.csv", ("round", "steps", "members"))
+    assert len(rows) >= 3 and all(int(steps) % 20 == 0 for _, steps, _ in rows)
+    assert sizes <= {"5x5", "5x6", "6x5", "6x6"} and len(sizes) >= 2, sizes  # mazes of two sizes
+    assert run_rollouts._cache_size() - compiled == 1  # ...one compiled training function
+    trainers = [p.name for p in (out / "checkpoints").glob("trainer-*")]
+    assert trainers == [f"trainer-{summary['rounds']}"]
+    capsys.readouterr()
+    assert amaze_main(["evaluate", str(out / "agent.zip"), "suite", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["success_rate"] == summary["success_rate"]
+
+
+def test_a_killed_jax_coevolution_run_resumes_to_the_same_agent_bit_for_bit(
+    tmp_path: Path, kill_at: Any
+) -> None:
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    options = _coevolution_options(tmp_path)
+    assert main([*COEVOLUTION, *options, "--out", str(whole)]) == 0
+    kill_at(20)  # in round 20, after the checkpoints of rounds 1 to 19 (eval_every 40)
+    with pytest.raises(Killed):
+        main([*COEVOLUTION, *options, "--out", str(cut)])
+    assert not (cut / "summary.json").exists()
+    resume(cut)
+    assert _same_params(whole / "agent.zip", cut / "agent.zip")
+    columns = ("round", "steps", "validation", "champion_success_rate", "members", "admitted")
+    assert _rows(whole / "progress.csv", columns) == _rows(cut / "progress.csv", columns)
+    mazes = ("id", "maze", "origin", "parent", "birth", "difficulty")
+    assert _rows(whole / "mazes.csv", mazes) == _rows(cut / "mazes.csv", mazes)
+    anytime = ("point", "env_steps", "success_rate", "normalized_reward")
+    assert _rows(whole / "evaluations.csv", anytime) == _rows(cut / "evaluations.csv", anytime)
+
+
 @pytest.mark.parametrize(
     ("argv", "options", "words"),
     [
-        (["--regime", "coevolution"], {}, "framework jax (--framework jax) does not run the"),
         (["--tensorboard"], {}, "tensorboard (--tensorboard) True has no effect with framework"),
         (["--robot", "CC15"], {}, "robot CC15 has continuous actions"),
         ([], {"use_sde": True}, "framework jax: hyperparameter 'use_sde' = True is refused"),

@@ -16,13 +16,21 @@ least 5 million per second. The mazes are prepared once (as every run does);
 that time is printed separately. Figures are medians of ``--repeats`` runs
 after one warm-up (which compiles the kernels on a first run).
 
+``--network JSON`` (repeatable) measures networks of other kinds in the same
+run, each the ``--hidden`` network with the given spec fields, e.g. the pooled
+network against convolutional ones on ``H15``::
+
+    python benchmarks/bench_evolution.py --robot H15 --network '{"symmetry": "rotations"}' \
+        --network '{"symmetry": "rotations", "filters": 4}'
+
 Usage: ``python benchmarks/bench_evolution.py [--repeats 7] [--population 64]
-[--hidden 16] [--robot DD] [--threads auto|on|off]``
+[--hidden 16] [--robot DD] [--network JSON]... [--threads auto|on|off]``
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import time
 
@@ -72,19 +80,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--hidden", type=_hidden, default=(16,), help="widths, e.g. 16 or 32,32")
     parser.add_argument("--robot", default="DD", help="DD, or an image robot such as H15")
     parser.add_argument(
+        "--network", type=json.loads, action="append",
+        help='spec fields of a network to measure (repeatable), e.g. \'{"filters": 4}\'',
+    )  # fmt: skip
+    parser.add_argument(
         "--threads", choices=("auto", "on", "off"), default="auto",
         help="multi-threaded forward pass: by load (auto), always or never",
     )  # fmt: skip
     args = parser.parse_args(argv)
 
-    spec = NetworkSpec(args.robot, args.hidden)
-    print(f"network {spec.to_dict()}: {spec.n_params} parameters")
     started = time.perf_counter()
-    suite = PopulationEvaluator(standard_suite().maze_strings(), spec.robot)
-    paper = PopulationEvaluator(rotations(PAPER_TRAINING_MAZE), spec.robot)
+    robot = NetworkSpec(args.robot).robot
+    suite = PopulationEvaluator(standard_suite().maze_strings(), robot)
+    paper = PopulationEvaluator(rotations(PAPER_TRAINING_MAZE), robot)
     print(f"mazes prepared in {time.perf_counter() - started:.2f} s (once per run)")
-    measure("standard suite", suite, spec, args)
-    measure("paper training maze x 4 rotations", paper, spec, args)
+    for fields in args.network or [{}]:
+        spec = NetworkSpec.from_dict({"robot": args.robot, "hidden": list(args.hidden), **fields})
+        print(f"network {spec.to_dict()}: {spec.n_params} parameters")
+        measure("standard suite", suite, spec, args)
+        measure("paper training maze x 4 rotations", paper, spec, args)
 
 
 if __name__ == "__main__":

@@ -42,6 +42,7 @@ from amaze.agents.robot import Robot, as_robot
 from amaze.runs.config import config_from_dict
 from amaze.validation import check_integer, check_number
 from evolution import EvolutionConfigError
+from evolution.convolution import MAX_FILTERS
 from evolution.networks import NetworkPopulation, NetworkSpec
 
 __all__ = ["DEFAULT_NETWORK", "CMAESAlgorithm", "CMAESConfig", "default_popsize"]
@@ -49,7 +50,7 @@ __all__ = ["DEFAULT_NETWORK", "CMAESAlgorithm", "CMAESConfig", "default_popsize"
 #: The default network: a linear policy (see :class:`CMAESConfig`).
 DEFAULT_NETWORK: dict[str, Any] = {"hidden": [], "activation": "tanh"}
 #: Network keys a CMA-ES configuration may set (the robot comes from the run).
-_NETWORK_KEYS = ("hidden", "activation", "pool", "symmetry")
+_NETWORK_KEYS = ("hidden", "activation", "pool", "symmetry", "filters", "stride")
 #: cma options the algorithm sets itself (they may not be given in ``cma_options``).
 _RESERVED_OPTIONS = frozenset(
     "seed popsize CMA_diagonal randn verbose verb_log verb_disp verb_filenameprefix"
@@ -117,7 +118,8 @@ class CMAESConfig:
     * ``network``: the :class:`~evolution.networks.NetworkSpec` fields but the
       robot (``hidden``, ``activation``, ``pool``, ``symmetry``: ``"rotations"``
       shares one network across the four directions, see
-      :mod:`evolution.networks`). Default: a **linear
+      :mod:`evolution.networks`; ``filters`` and ``stride``: image robots read
+      their image through evolved 3x3 filters, :mod:`evolution.convolution`). Default: a **linear
       policy** (``hidden: []``, 36 parameters for ``DD``). On the trivial and
       simple columns of the standard suite (6 mazes x 4 rotations, ``DD``,
       paper reward), the champion reached success 1.0 after a median of 76
@@ -244,11 +246,25 @@ def _check_network(network: Any) -> dict[str, Any]:
         pool = check_integer(
             "CMA-ES config 'network': pool", pool, minimum=1, error=EvolutionConfigError
         )
+    filters = check_integer(
+        "CMA-ES config 'network': filters",
+        network.get("filters", 0),
+        minimum=0,
+        maximum=MAX_FILTERS,
+        error=EvolutionConfigError,
+    )
+    stride = network.get("stride")
+    if stride is not None:  # None: the default stride of the robot's retina
+        stride = check_integer(
+            "CMA-ES config 'network': stride", stride, minimum=1, error=EvolutionConfigError
+        )
     return {
         "hidden": list(spec.hidden),
         "activation": spec.activation,
         "pool": pool,
         "symmetry": spec.symmetry,
+        "filters": filters,
+        "stride": stride,
     }
 
 
@@ -305,6 +321,8 @@ class CMAESAlgorithm:
             activation=network["activation"],
             pool=network["pool"],
             symmetry=network["symmetry"],
+            filters=network.get("filters", 0),
+            stride=network.get("stride"),
         )
         self._rng = np.random.default_rng(self.seed)
         self._np_state = np.random.RandomState(self.seed).get_state()

@@ -80,6 +80,17 @@ from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, RobotStringError, as_robot
 from amaze.validation import check_integer
 from evolution import EvolutionConfigError
+from evolution.activations import ACTIVATION_CODES, ACTIVATIONS, activate_block, tanh32
+from evolution.convolution import (
+    FILTER_SIDE,
+    MAX_FILTERS,
+    check_stride,
+    convolve,
+    default_stride,
+    feature_turns,
+    grid_side,
+    turned_filters,
+)
 
 __all__ = [
     "ACTIVATIONS",
@@ -91,8 +102,6 @@ __all__ = [
     "rotation_index",
 ]
 
-#: Hidden-layer activations.
-ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
 #: Weight sharing across directions (see the module docstring, "Symmetry").
 SYMMETRIES: tuple[str, ...] = ("none", "rotations")
 #: Default side of the pooled grid of image robots.
@@ -104,8 +113,6 @@ N_CONTINUOUS_OUTPUTS = 2
 #: Widest hidden layer accepted (a sanity bound, far above what evolution uses).
 MAX_WIDTH = 4096
 
-_ACTIVATION_CODES = {name: code for code, name in enumerate(ACTIVATIONS)}
-_TANH, _RELU, _SIGMOID, _IDENTITY = range(4)
 _MODE_DISCRETE, _MODE_CONTINUOUS = 0, 1
 
 #: Agents processed together by the kernel (its SIMD axis).
@@ -128,7 +135,9 @@ class NetworkSpec:
     ``pool`` is the side of the pooled image grid, ``None`` for discrete-input
     robots (image robots default to :data:`DEFAULT_POOL`); ``symmetry`` is
     one of :data:`SYMMETRIES` (``"rotations"``: one network scores each
-    direction, for discrete actions).
+    direction, for discrete actions). ``filters`` > 0 (image robots) reads the
+    image through that many evolved 3x3 filters slid with ``stride`` instead
+    of pooling it (:mod:`evolution.convolution`; ``pool`` is then ``None``).
     """
 
     robot: str = "DD"
@@ -136,6 +145,8 @@ class NetworkSpec:
     activation: str = "tanh"
     pool: int | None = None
     symmetry: str = "none"
+    filters: int = 0
+    stride: int | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -161,12 +172,35 @@ class NetworkSpec:
             raise EvolutionConfigError(
                 f"activation {self.activation!r} is not one of {', '.join(ACTIVATIONS)}"
             )
+        filters = check_integer(
+            "filters", self.filters, minimum=0, maximum=MAX_FILTERS, error=EvolutionConfigError
+        )
+        object.__setattr__(self, "filters", filters)
         if robot.discrete_inputs:
             if self.pool is not None:
                 raise EvolutionConfigError(
                     f"pool {self.pool!r}: robot {robot} has no image to pool (give none)"
                 )
+            if filters or self.stride is not None:
+                raise EvolutionConfigError(
+                    f"filters {filters!r}, stride {self.stride!r}: robot {robot} has no image"
+                    " to convolve (give none)"
+                )
+        elif filters:
+            if self.pool is not None:
+                raise EvolutionConfigError(
+                    f"pool {self.pool!r} with filters {filters}: a network pools its image or"
+                    " convolves it, not both (give one)"
+                )
+            vision = int(robot.vision)
+            stride = default_stride(vision) if self.stride is None else self.stride
+            object.__setattr__(self, "stride", check_stride(stride, vision))
         else:
+            if self.stride is not None:
+                raise EvolutionConfigError(
+                    f"stride {self.stride!r} without filters: only a convolution has a stride"
+                    " (give filters, or no stride)"
+                )
             pool = DEFAULT_POOL if self.pool is None else self.pool
             pool = check_integer(
                 "pool", pool, minimum=1, maximum=int(robot.vision), error=EvolutionConfigError
@@ -182,9 +216,25 @@ class NetworkSpec:
         return as_robot(self.robot)
 
     @property
+    def grid(self) -> int | None:
+        """Side of the image grid the dense layers see: ``pool``, the convolution's
+        feature maps, or ``None`` (discrete inputs)."""
+        if self.filters:
+            return grid_side(int(self.robot_info.vision), int(self.stride))
+        return self.pool
+
+    @property
     def n_inputs(self) -> int:
-        """Inputs of the first dense layer: 8, or ``pool * pool`` pooled pixels."""
-        return N_DISCRETE_INPUTS if self.pool is None else self.pool * self.pool
+        """Inputs of the first dense layer: 8, ``pool * pool`` pooled pixels, or
+        ``filters x grid^2`` features."""
+        if self.grid is None:
+            return N_DISCRETE_INPUTS
+        return max(self.filters, 1) * self.grid * self.grid
+
+    @property
+    def n_conv_params(self) -> int:
+        """Parameters of the filters (9 weights and a bias each), first in a vector."""
+        return self.filters * (FILTER_SIDE * FILTER_SIDE + 1)
 
     @property
     def n_outputs(self) -> int:
@@ -210,7 +260,8 @@ class NetworkSpec:
     @property
     def n_params(self) -> int:
         """Length of a parameter vector: all weights and biases."""
-        return sum(d_in * d_out + d_out for d_in, d_out in self.layer_shapes)
+        dense = sum(d_in * d_out + d_out for d_in, d_out in self.layer_shapes)
+        return self.n_conv_params + dense
 
     # -- (de)serialisation ----------------------------------------------------
 
@@ -222,6 +273,8 @@ class NetworkSpec:
             "activation": self.activation,
             "pool": self.pool,
             "symmetry": self.symmetry,
+            "filters": self.filters,
+            "stride": self.stride,
         }
 
     @classmethod
@@ -236,7 +289,8 @@ class NetworkSpec:
         kind = data.pop("type", "mlp")
         if kind != "mlp":
             raise EvolutionConfigError(f"network type {kind!r} is not 'mlp'")
-        unknown = sorted(set(data) - {"robot", "hidden", "activation", "pool", "symmetry"})
+        keys = {"robot", "hidden", "activation", "pool", "symmetry", "filters", "stride"}
+        unknown = sorted(set(data) - keys)
         if unknown:
             raise EvolutionConfigError(f"unknown network spec key(s): {', '.join(unknown)}")
         if "robot" not in data:
@@ -250,12 +304,15 @@ class NetworkSpec:
             activation=data.get("activation", "tanh"),
             pool=data.get("pool"),
             symmetry=data.get("symmetry", "none"),
+            filters=data.get("filters", 0),
+            stride=data.get("stride"),
         )
 
     # -- parameters -----------------------------------------------------------
 
     def initial_params(self, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
-        """Random parameters: weights ``N(0, 1 / d_in)``, biases zero; float64.
+        """Random parameters: weights ``N(0, 1 / d_in)`` (filters: ``N(0, 1 / 9)``), biases
+        zero; float64.
 
         One vector ``(n_params,)``, or ``(n, n_params)`` when ``n`` is given.
         """
@@ -263,7 +320,9 @@ class NetworkSpec:
         if n is not None:
             count = check_integer("n", n, minimum=1, maximum=1 << 30, error=EvolutionConfigError)
         params = np.zeros((count, self.n_params), dtype=np.float64)
-        offset = 0
+        size = self.filters * FILTER_SIDE * FILTER_SIDE
+        params[:, :size] = rng.normal(0.0, 1.0 / FILTER_SIDE, (count, size))
+        offset = self.n_conv_params
         for d_in, d_out in self.layer_shapes:
             size = d_in * d_out
             params[:, offset : offset + size] = rng.normal(0.0, 1.0 / np.sqrt(d_in), (count, size))
@@ -271,13 +330,9 @@ class NetworkSpec:
         return params[0] if n is None else params
 
     def unflatten(self, params: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The ``(weights (d_in, d_out), biases (d_out,))`` of each layer of one vector."""
-        params = np.asarray(params)
-        if params.shape != (self.n_params,):
-            raise EvolutionConfigError(
-                f"a parameter vector of {self.n_params} values was expected, got {params.shape}"
-            )
-        layers, offset = [], 0
+        """The ``(weights (d_in, d_out), biases (d_out,))`` of each dense layer of one vector."""
+        params = self._checked_vector(params)
+        layers, offset = [], self.n_conv_params
         for d_in, d_out in self.layer_shapes:
             weights = params[offset : offset + d_in * d_out].reshape(d_in, d_out)
             offset += d_in * d_out
@@ -285,12 +340,32 @@ class NetworkSpec:
             offset += d_out
         return layers
 
+    def filter_params(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The filters of one vector: weights ``(filters, 3, 3)`` and biases ``(filters,)``."""
+        params = self._checked_vector(params)
+        size = self.filters * FILTER_SIDE * FILTER_SIDE
+        weights = params[:size].reshape(self.filters, FILTER_SIDE, FILTER_SIDE)
+        return weights, params[size : self.n_conv_params]
+
+    def _checked_vector(self, params: np.ndarray) -> np.ndarray:
+        params = np.asarray(params)
+        if params.shape != (self.n_params,):
+            raise EvolutionConfigError(
+                f"a parameter vector of {self.n_params} values was expected, got {params.shape}"
+            )
+        return params
+
     def encode(self, observations: np.ndarray) -> np.ndarray:
         """float32 ``(n, n_inputs)``: the network inputs of a batch of observations.
 
         The 8 floats of discrete inputs; the pooled image (block means of the
-        pixels / 255) of image robots. The kernel does the same, fused.
+        pixels / 255) of image robots. The kernel does the same, fused. (A
+        convolutional network's inputs depend on its filters: refused.)
         """
+        if self.filters:
+            raise EvolutionConfigError(
+                "a convolutional network's inputs depend on its filters: encode has none"
+            )
         observations = np.asarray(observations)
         n = observations.shape[0]
         if self.pool is None:
@@ -311,8 +386,13 @@ class NetworkSpec:
         ``inputs[:, index[d]]`` are the inputs seen after turning the cell ``d``
         quarter-turns clockwise (E, N, W, S order of ``d``): the 4 wall and 4
         sign values of DD robots shifted cyclically, the pooled grid of image
-        robots turned by ``np.rot90(grid, -d)`` (row 0 is north).
+        robots turned by ``np.rot90(grid, -d)`` (row 0 is north). A
+        convolutional network gathers from the maps of its filters in their 4
+        turns instead (``(4, filters x grid^2)`` into ``4 x filters x grid^2``
+        maps, :func:`~evolution.convolution.feature_turns`).
         """
+        if self.filters:
+            return feature_turns(self.filters, int(self.grid))
         return rotation_index(self.pool)
 
     def population(self, params: np.ndarray, *, parallel: bool | None = None) -> NetworkPopulation:
@@ -367,46 +447,6 @@ def _u(index):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _tanh(v):
-    """float32 tanh: Eigen's rational approximation on [-7.9053, 7.9053], ±1 beyond."""
-    c = np.float32(7.90531110763549805)
-    x = v if v < c else c
-    x = x if x > -c else -c
-    x2 = x * x
-    p = np.float32(-2.76076847742355e-16)
-    p = x2 * p + np.float32(2.00018790482477e-13)
-    p = x2 * p + np.float32(-8.60467152213735e-11)
-    p = x2 * p + np.float32(5.12229709037114e-08)
-    p = x2 * p + np.float32(1.48572235717979e-05)
-    p = x2 * p + np.float32(6.37261928875436e-04)
-    p = x2 * p + np.float32(4.89352455891786e-03)
-    q = np.float32(1.19825839466702e-06)
-    q = x2 * q + np.float32(1.18534705686654e-04)
-    q = x2 * q + np.float32(2.26843463243900e-03)
-    q = x2 * q + np.float32(4.89352518554385e-03)
-    return x * p / q
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _activate(a, b, d_out, nb, activation):
-    """``a = activation(b)`` on the first ``d_out x nb`` entries."""
-    for o in range(d_out):
-        if activation == _TANH:
-            for r in range(nb):
-                a[o, r] = _tanh(b[o, r])
-        elif activation == _RELU:
-            for r in range(nb):
-                v = b[o, r]
-                a[o, r] = v if v > 0 else np.float32(0.0)
-        elif activation == _SIGMOID:
-            for r in range(nb):
-                a[o, r] = np.float32(0.5) + np.float32(0.5) * _tanh(np.float32(0.5) * b[o, r])
-        else:
-            for r in range(nb):
-                a[o, r] = b[o, r]
-
-
-@numba.njit(cache=True, error_model="numpy")
 def _emit(b, agents, nb, d_last, mode, values, discrete, continuous):
     """Write the outputs ``b`` of the block's agents, and their actions."""
     for r in range(nb):
@@ -423,7 +463,7 @@ def _emit(b, agents, nb, d_last, mode, values, discrete, continuous):
             discrete[k] = best
         else:
             for o in range(d_last):
-                continuous[k, o] = _tanh(b[o, r])
+                continuous[k, o] = tanh32(b[o, r])
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -467,7 +507,7 @@ def _block_of_individual(
                 for r in range(nb):
                     b[o, r] += weight * a[i, r]
         if layer < n_layers - 1:
-            _activate(a, b, d_out, nb, activation)
+            activate_block(a, b, d_out, nb, activation)
     _emit(b, agents, nb, layers[n_layers - 1, 1], mode, values, discrete, continuous)
 
 
@@ -511,7 +551,7 @@ def _block_of_episode(
                 for r in range(nb):
                     b[o, r] += params_t[w, _u(p0 + r)] * a[i, r]
         if layer < n_layers - 1:
-            _activate(a, b, d_out, nb, activation)
+            activate_block(a, b, d_out, nb, activation)
     _emit(b, agents, nb, layers[n_layers - 1, 1], mode, values, discrete, continuous)
 
 
@@ -727,16 +767,26 @@ class NetworkPopulation:
         self.n_policies = int(self.params.shape[0])
         self.parallel = parallel
         sizes = spec.layer_sizes
-        layers, offset = [], 0
+        layers, offset = [], spec.n_conv_params
         for d_in, d_out in spec.layer_shapes:
             layers.append((d_in, d_out, offset, offset + d_in * d_out))
             offset += d_in * d_out + d_out
         self._layers = np.array(layers, dtype=np.int64)
         self._width = max(sizes)
         self._macs = sum(d_in * d_out for d_in, d_out in spec.layer_shapes)
-        self._activation = _ACTIVATION_CODES[spec.activation]
+        self._filters: tuple[np.ndarray, np.ndarray] | None = None
+        if spec.filters:  # (P, E, 9) and (P, E): E = filters, or 4 x filters turned
+            size = spec.filters * FILTER_SIDE * FILTER_SIDE
+            weights = self.params[:, :size].reshape(self.n_policies, spec.filters, -1)
+            biases = self.params[:, size : spec.n_conv_params]
+            if spec.copies > 1:
+                weights, biases = turned_filters(weights, biases)
+            self._filters = (np.ascontiguousarray(weights), np.ascontiguousarray(biases))
+            self._n_features = weights.shape[1] * int(spec.grid) ** 2
+            self._macs += self._n_features * FILTER_SIDE * FILTER_SIDE // spec.copies
+        self._activation = ACTIVATION_CODES[spec.activation]
         self._mode = _MODE_DISCRETE if self.robot.discrete_outputs else _MODE_CONTINUOUS
-        self._vision = None if spec.pool is None else int(self.robot.vision)
+        self._vision = None if spec.grid is None else int(self.robot.vision)
         if spec.pool is not None:
             edges = _pool_edges(self._vision, spec.pool)
             self._edges = edges
@@ -885,9 +935,22 @@ class NetworkPopulation:
                     f"expected {v}x{v} images for robot {self.robot}, got {observations.shape}"
                 )
             images = np.ascontiguousarray(observations.reshape(n, v, v))
-            x = np.empty((n, self._n_inputs), dtype=np.float32)
             # an agent's kernel rows are its ``copies`` consecutive ones, active together
-            _pool(images, rows[::copies] // copies, self._edges, self._scale, x)
+            agents = rows[::copies] // copies
+            if self._filters is not None:
+                x = np.empty((n, self._n_features), dtype=np.float32)
+                parallel = self._kernel is _forward_parallel
+                if self.parallel is not None:
+                    parallel = self.parallel
+                weights, biases = self._filters
+                stride = int(self.spec.stride)
+                convolve(
+                    images, agents, m, weights, biases, stride, self._activation, x,
+                    parallel=parallel,
+                )  # fmt: skip
+            else:
+                x = np.empty((n, self._n_inputs), dtype=np.float32)
+                _pool(images, agents, self._edges, self._scale, x)
         mode = self._mode
         if copies > 1:
             # kernel row 4 k + d: agent k's inputs turned so that side d is east;

@@ -55,6 +55,8 @@ def test_config_defaults_round_trip_through_json() -> None:
         "activation": "tanh",
         "pool": None,
         "symmetry": "none",
+        "filters": 0,
+        "stride": None,
     }
     data = json.loads(json.dumps(config.to_dict()))
     assert CMAESConfig.from_dict(data) == config
@@ -73,6 +75,8 @@ def test_config_defaults_round_trip_through_json() -> None:
         "activation": "relu",
         "pool": None,
         "symmetry": "none",
+        "filters": 0,
+        "stride": None,
     }
     again = CMAESConfig.from_dict(json.loads(json.dumps(custom.to_dict())))
     assert again == custom

@@ -13,12 +13,17 @@ on one CPU core:
 * with ``--full``: the wall time of a whole 3 M-step JAX PPO run from a fresh
   trainer, compilation included, and its final success rate.
 
+``--robot H15`` (or another hybrid robot) measures the CNN policies instead
+(:class:`rl_baselines.networks.SmallCNN` and its JAX twin), with smaller
+``--ppo-steps``/``--a2c-steps``/``--sb3-steps`` to keep it short (the CNN
+costs far more per step than the MLP).
+
 One core: the process pins itself to one CPU (``os.sched_setaffinity``, as
 ``taskset -c <cpu>``; ``--cpu``) before importing JAX, and sets
 ``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``
 (XLA's CPU runtime then runs single-threaded) and ``torch.set_num_threads(1)``.
 
-Usage: ``python benchmarks/bench_jax_rl.py [--repeats 3] [--full] [--json]``.
+Usage: ``python benchmarks/bench_jax_rl.py [--robot DD] [--repeats 3] [--full] [--json]``.
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ def _one_core(cpu: int) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 
-def jax_rates(algo: str, steps: int, repeats: int) -> dict[str, Any]:
+def jax_rates(algo: str, steps: int, repeats: int, robot: str = "DD") -> dict[str, Any]:
     """JAX ``algo``'s env steps/s of ``learn(steps)``, after a compiling first call."""
     import jax
 
@@ -49,9 +54,9 @@ def jax_rates(algo: str, steps: int, repeats: int) -> dict[str, Any]:
     from amaze.maze import rotations
     from rl_baselines.jax import JaxTrainer
 
-    trainer = JaxTrainer(algo, "DD", rotations(PAPER_TRAINING_MAZE), {}, seed=0, n_envs=4)
+    trainer = JaxTrainer(algo, robot, rotations(PAPER_TRAINING_MAZE), {}, seed=0, n_envs=4)
     start = time.perf_counter()
-    trainer.learn(trainer.chunk * trainer.hyperparameters.rollout_size)
+    trainer.learn(min(steps, trainer.chunk * trainer.hyperparameters.rollout_size))
     jax.block_until_ready(trainer.state)
     compile_s = time.perf_counter() - start
     rates = []
@@ -68,21 +73,20 @@ def jax_rates(algo: str, steps: int, repeats: int) -> dict[str, Any]:
     }
 
 
-def sb3_rates(algo: str, steps: int, repeats: int) -> dict[str, Any]:
-    """SB3 ``algo``'s env steps/s of ``learn(steps)`` (SB3 defaults, MlpPolicy)."""
+def sb3_rates(algo: str, steps: int, repeats: int, robot: str = "DD") -> dict[str, Any]:
+    """SB3 ``algo``'s env steps/s of ``learn(steps)`` (SB3 defaults, the run's policy)."""
     import torch
-    from stable_baselines3 import A2C, PPO
 
     from amaze.evaluation.suite import PAPER_TRAINING_MAZE
     from amaze.maze import rotations
+    from rl_baselines.learner import new_sb3_model
     from rl_baselines.vec_env import SB3VecEnv
 
     torch.set_num_threads(1)
-    cls = {"ppo": PPO, "a2c": A2C}[algo]
     rates = []
     for repeat in range(repeats):
-        env = SB3VecEnv(rotations(PAPER_TRAINING_MAZE), "DD", 4, seed=repeat)
-        model = cls("MlpPolicy", env, seed=repeat, device="cpu", verbose=0)
+        env = SB3VecEnv(rotations(PAPER_TRAINING_MAZE), robot, 4, seed=repeat)
+        model = new_sb3_model(algo, robot, env, repeat, {}, None)
         start = time.perf_counter()
         model.learn(steps)
         rates.append(model.num_timesteps / (time.perf_counter() - start))
@@ -115,6 +119,7 @@ def full_ppo_run(total: int) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", default="DD", help="DD, or a hybrid robot such as H15")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--ppo-steps", type=int, default=8 * 8192, help="JAX PPO steps/repeat")
     parser.add_argument("--a2c-steps", type=int, default=200_000, help="JAX A2C steps/repeat")
@@ -126,16 +131,16 @@ def main() -> None:
     args = parser.parse_args()
     _one_core(args.cpu)
     rows = [
-        jax_rates("ppo", args.ppo_steps, args.repeats),
-        jax_rates("a2c", args.a2c_steps, args.repeats),
-        sb3_rates("ppo", args.sb3_steps, args.repeats),
-        sb3_rates("a2c", args.sb3_steps, args.repeats),
+        jax_rates("ppo", args.ppo_steps, args.repeats, args.robot),
+        jax_rates("a2c", args.a2c_steps, args.repeats, args.robot),
+        sb3_rates("ppo", args.sb3_steps, args.repeats, args.robot),
+        sb3_rates("a2c", args.sb3_steps, args.repeats, args.robot),
     ]
     full = full_ppo_run(args.full_steps) if args.full else None
     if args.json:
         print(json.dumps({"training": rows, "full_ppo_run": full}, indent=2))
         return
-    print(f"DD, 4 envs, training maze rotations, SB3 defaults, 1 core (cpu {args.cpu}), "
+    print(f"{args.robot}, 4 envs, training maze rotations, SB3 defaults, 1 core (cpu {args.cpu}), "
           f"median of {args.repeats}")  # fmt: skip
     print(f"{'learner':>8} {'env steps/s':>12} {'first call s':>13}")
     for r in rows:

@@ -113,15 +113,39 @@ def _linear(layer: dict[str, jax.Array], x: jax.Array) -> jax.Array:
 
 
 def _conv(layer: dict[str, jax.Array], x: jax.Array) -> jax.Array:
-    """torch's ``nn.Conv2d(kernel_size=3, padding=1)`` on NCHW images."""
-    y = jax.lax.conv_general_dilated(
+    """torch's ``nn.Conv2d(kernel_size=3, padding=1)`` on NCHW images.
+
+    On CPU it is :func:`conv_patches`: XLA's CPU convolution runs about ten
+    times slower inside a loop (the compiled rollout's and update's
+    ``lax.scan``) than outside, and the patch product about seven times faster
+    than it there (``benchmarks/bench_jax_rl.py --robot H15``). Elsewhere
+    (GPU) it is XLA's convolution, :func:`conv_xla`.
+    """
+    conv = conv_patches if jax.default_backend() == "cpu" else conv_xla
+    return conv(layer["weight"], x) + layer["bias"][None, :, None, None]
+
+
+def conv_patches(weight: jax.Array, x: jax.Array) -> jax.Array:
+    """A 3x3 convolution with padding 1 (no bias) as a matrix product of ``weight``
+    ``(O, C, 3, 3)`` with the image's 3x3 patches (nine shifted slices of the padded
+    image), NCHW in and out."""
+    n, c, h, w = x.shape
+    padded = jnp.pad(x, ((0, 0), (0, 0), (1, 1), (1, 1)))
+    shifted = [padded[:, :, a : a + h, b : b + w] for a in range(3) for b in range(3)]
+    patches = jnp.stack(shifted, axis=2).reshape(n, c * 9, h * w)
+    y = jnp.einsum("ok,nkp->nop", weight.reshape(weight.shape[0], -1), patches)
+    return y.reshape(n, weight.shape[0], h, w)
+
+
+def conv_xla(weight: jax.Array, x: jax.Array) -> jax.Array:
+    """The same convolution as :func:`conv_patches`, by ``lax.conv_general_dilated``."""
+    return jax.lax.conv_general_dilated(
         x,
-        layer["weight"],
+        weight,
         window_strides=(1, 1),
         padding=((1, 1), (1, 1)),
         dimension_numbers=("NCHW", "OIHW", "NCHW"),
     )
-    return y + layer["bias"][None, :, None, None]
 
 
 def _features(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:

@@ -16,7 +16,7 @@ import pytest
 jax = pytest.importorskip("jax")
 pytest.importorskip("stable_baselines3")
 
-from rl_baselines.jax.networks import init_params  # noqa: E402
+from rl_baselines.jax.networks import conv_patches, conv_xla, init_params  # noqa: E402
 from rl_baselines.jax.sb3_io import sb3_state_dict  # noqa: E402
 from rl_baselines.jax.spec import PolicySpec  # noqa: E402
 from rl_baselines.learner import new_sb3_model  # noqa: E402
@@ -55,3 +55,15 @@ def test_defaults_are_sb3s(algo: str) -> None:
     signature = inspect.signature(getattr(stable_baselines3, algo.upper()).__init__)
     for name, value in SB3_DEFAULTS[algo].items():
         assert signature.parameters[name].default == value, name
+
+
+def test_the_cpu_convolution_is_xlas_convolution() -> None:
+    """The patch product the CPU uses equals ``lax.conv_general_dilated`` (used elsewhere)."""
+    rng = np.random.default_rng(5)
+    for channels, side in ((1, 15), (16, 11), (3, 7)):
+        weight = rng.normal(size=(8, channels, 3, 3)).astype(np.float32)
+        images = rng.random((5, channels, side, side)).astype(np.float32)
+        patches = np.asarray(conv_patches(jax.numpy.asarray(weight), jax.numpy.asarray(images)))
+        reference = np.asarray(conv_xla(jax.numpy.asarray(weight), jax.numpy.asarray(images)))
+        assert patches.shape == (5, 8, side, side)
+        np.testing.assert_allclose(patches, reference, rtol=1e-5, atol=1e-5)

@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from amaze.errors import UsageError
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.runs.lifecycle import Run
 
 __all__ = [
@@ -52,7 +53,11 @@ TRAINERS: dict[str, dict[str, Any]] = {
     # evolution only: EDEnS choosing how the co-evolved maze population evolves
     "edens-populations": {"regime": "edens-populations"},
     # the direct regime on fixed family mazes
-    "domain-randomisation": {"regime": "direct", "mazes": DOMAIN_RANDOMISATION_MAZES},
+    "domain-randomisation": {
+        "regime": "direct",
+        "mazes": DOMAIN_RANDOMISATION_MAZES,
+        "evaluation_maze": PAPER_TRAINING_MAZE,  # the curricula's evaluation set
+    },
 }
 
 

@@ -41,6 +41,7 @@ SAMPLES: dict[str, Any] = {
     "target": "M3_8x8_C1",
     "mazes": ["M1_5x5_C1"],
     "eval_mazes": ["M2_5x5_C1"],
+    "evaluation_maze": "M4_8x8_C1",
     "agent_rule": "final",
     "final_training": False,
     "curator_options": {"seed_step": 1},

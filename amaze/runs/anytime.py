@@ -20,7 +20,9 @@ method each):
 * **where**: the :class:`EvaluationSet`: ``evaluation_family`` mazes of the
   training family with new seeds (never the evaluation suite's, nor a run's
   validation or unseen mazes: another seed stream), and the training mazes
-  themselves, each in its 4 rotations. It depends on the config's family
+  themselves, each in its 4 rotations (a direct run's ``evaluation_maze``,
+  if it names one, stands for its training mazes: domain randomisation then
+  plays the curricula's set). It depends on the config's family
   maze, counts and robot only, so every run of a study has the same set; its
   digest is in every row;
 * **cost**: each evaluation's seconds are measured and kept out of the
@@ -127,8 +129,18 @@ class EvaluationSet:
 
     @classmethod
     def for_config(cls, config: Any) -> EvaluationSet:
-        """The set of a run's config: its family maze, ``evaluation_family`` and robot."""
-        training = config.mazes if config.regime == "direct" else [config.target]
+        """The set of a run's config: its family maze, ``evaluation_family`` and robot.
+
+        A curriculum's or co-evolution's target; a direct run's
+        ``evaluation_maze`` if it names one, else its training mazes (the
+        family of the first).
+        """
+        if config.regime != "direct":
+            training = [config.target]
+        elif getattr(config, "evaluation_maze", None) is not None:
+            training = [config.evaluation_maze]
+        else:
+            training = config.mazes
         return cls.of(training, config.robot, config.evaluation_family)
 
     @cached_property

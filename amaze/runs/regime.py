@@ -201,6 +201,15 @@ class RegimeConfig(RunConfig):
         " besides the training mazes; 4 rotations each",
         metavar="N",
     )
+    evaluation_maze: str | None = option(
+        None,
+        "the maze whose family the evaluation set of a direct run draws from, and which"
+        " it holds instead of the training mazes (default: the first training maze's"
+        " family, and the training mazes): a curriculum's target puts a direct run on"
+        " family mazes (domain randomisation) on the curricula's evaluation set",
+        metavar="MAZE",
+        regimes=("direct",),
+    )
 
     @property
     def is_curriculum(self) -> bool:
@@ -232,6 +241,8 @@ class RegimeConfig(RunConfig):
         if self.regime != "direct":
             self.target = self._maze("target", self.target)
         self.mazes = self._maze_list("mazes", self.mazes)
+        if self.evaluation_maze is not None:
+            self.evaluation_maze = self._maze("evaluation_maze", self.evaluation_maze)
         if self.eval_mazes is not None:
             self.eval_mazes = self._maze_list("eval_mazes", self.eval_mazes, empty=True)
         self._check_coevolution()

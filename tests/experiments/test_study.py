@@ -136,3 +136,17 @@ def test_the_mixed_study_compares_a_strategy_an_algorithm_and_both_at_an_equal_b
     assert both["curator_options"] == {"p": 0.5, "base": "careful"}
     loops = {(c["regime"], c["stages"], c["branches"]) for c in by_trainer.values()}
     assert loops == {("edhucat", 5, 3)}  # the same loop for the three
+
+
+def test_domain_randomisation_plays_the_curricula_s_evaluation_set() -> None:
+    """Its runs train on other family mazes, but their anytime evaluations are comparable."""
+    from amaze.runs.anytime import EvaluationSet
+    from experiments.trainers import run_class
+
+    for name in ("regimes-evolution", "rl-automated"):
+        digests = {}
+        for run in load_study(name).runs:
+            config = run_class(run.algorithm).config_class.from_dict(run.config).validate()
+            digests.setdefault(run.trainer, set()).add(EvaluationSet.for_config(config).digest)
+        assert len(set().union(*digests.values())) == 1, (name, digests)
+        assert "domain-randomisation" in digests

@@ -32,6 +32,7 @@ class ToyConfig:
     regime: str = "direct"
     mazes: tuple[str, ...] = (TRAINING,)
     target: str = TRAINING
+    evaluation_maze: str | None = None
     robot: str = "DD"
     error: type[ValueError] = ToyError
 
@@ -85,6 +86,16 @@ def test_a_curriculum_is_evaluated_on_its_target_family() -> None:
     direct = EvaluationSet.for_config(ToyConfig())
     curriculum = EvaluationSet.for_config(ToyConfig(regime="edhucat", mazes=("M9_5x5",)))
     assert direct == curriculum  # the direct regime's mazes are the curricula's target
+
+
+def test_a_direct_run_on_family_mazes_can_take_the_curricula_s_set() -> None:
+    # domain randomisation: other mazes of the target's family, of other sizes
+    family = ("M31_8x8_C1", "M32_10x10_C1")
+    own = EvaluationSet.for_config(ToyConfig(mazes=family))
+    assert own.training == family and all("_8x8_" in m for m in own.family)
+    chosen = EvaluationSet.for_config(ToyConfig(mazes=family, evaluation_maze=TRAINING))
+    curriculum = EvaluationSet.for_config(ToyConfig(regime="coevolution"))
+    assert chosen == curriculum and chosen.digest != own.digest
 
 
 def test_rows_split_the_family_from_the_training_mazes(tmp_path: Path) -> None:

@@ -10,8 +10,8 @@ on one CPU core:
   median of ``--repeats``;
 * SB3 PPO and A2C (torch, 1 thread) on :class:`rl_baselines.vec_env.SB3VecEnv`
   (the numba engine), ``learn(--sb3-steps)``, median of ``--repeats``;
-* with ``--full``: the wall time of a whole 3 M-step JAX PPO run from a fresh
-  trainer, compilation included, and its final success rate.
+* with ``--full`` (DD only): the wall time of a whole 3 M-step JAX PPO run from
+  a fresh trainer, compilation included, and its final success rate.
 
 ``--robot H15`` (or another hybrid robot) measures the CNN policies instead
 (:class:`rl_baselines.networks.SmallCNN` and its JAX twin), with smaller
@@ -129,6 +129,8 @@ def main() -> None:
     parser.add_argument("--cpu", type=int, default=0, help="the core to run on")
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
     args = parser.parse_args()
+    if args.full and args.robot != "DD":
+        parser.error(f"--full times the paper's 3 M-step DD run, not robot {args.robot}")
     _one_core(args.cpu)
     rows = [
         jax_rates("ppo", args.ppo_steps, args.repeats, args.robot),

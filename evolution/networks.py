@@ -939,14 +939,11 @@ class NetworkPopulation:
             agents = rows[::copies] // copies
             if self._filters is not None:
                 x = np.empty((n, self._n_features), dtype=np.float32)
-                parallel = self._kernel is _forward_parallel
-                if self.parallel is not None:
-                    parallel = self.parallel
                 weights, biases = self._filters
                 stride = int(self.spec.stride)
                 convolve(
                     images, agents, m, weights, biases, stride, self._activation, x,
-                    parallel=parallel,
+                    parallel=self._threaded(),
                 )  # fmt: skip
             else:
                 x = np.empty((n, self._n_inputs), dtype=np.float32)
@@ -966,9 +963,7 @@ class NetworkPopulation:
             values = np.empty((n, self._n_outputs), dtype=np.float32)
             discrete = _NO_DISCRETE
             continuous = np.zeros((n, N_CONTINUOUS_OUTPUTS), dtype=np.float64)
-        kernel = self._kernel
-        if self.parallel is not None:
-            kernel = _forward_parallel if self.parallel else _forward_serial
+        kernel = _forward_parallel if self._threaded() else _forward_serial
         kernel(
             by_episode,
             m * copies,
@@ -991,6 +986,10 @@ class NetworkPopulation:
             logits = values.reshape(n, copies)
             return logits, np.argmax(logits, axis=1).astype(np.int64)
         return values, (discrete if mode == _MODE_DISCRETE else continuous)
+
+    def _threaded(self) -> bool:
+        """Whether this call's kernels run on several threads: ``parallel``, else by the work."""
+        return self._kernel is _forward_parallel if self.parallel is None else self.parallel
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
         """The actions of a batch of ``P * M`` observations (see the class docstring)."""

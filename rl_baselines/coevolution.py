@@ -1,10 +1,11 @@
-"""Reinforcement learning in the ``coevolution`` regime: an SB3 agent and a maze population.
+"""Reinforcement learning in the ``coevolution`` regime: an RL agent and a maze population.
 
 ``amaze-train --algo ppo --regime coevolution --budget-steps 300000 --out runs/co``
 runs the shared co-evolution loop (:class:`~amaze.runs.coevolution.CoevolutionRun`:
 the population, the champion on validation mazes, budgets, checkpoints,
-``mazes.csv``, ``population.png``, ``coevolution.png``) with one SB3 model as
-its learner, in *rounds*:
+``mazes.csv``, ``population.png``, ``coevolution.png``) with one RL model as
+its learner (:class:`RLCoevolutionRun`; SB3's here, :class:`SB3CoevolutionRun`;
+the JAX learners' in :mod:`rl_baselines.jax_coevolution`), in *rounds*:
 
 1. the population proposes a batch of ``n_envs / 4`` mazes (one environment
    per rotation; ``coevolution.batch`` defaults to that and must match it);
@@ -34,15 +35,15 @@ its learner, in *rounds*:
    (``checkpoints/champion.zip``), the run's agent (``agent.zip`` at the end).
 
 What is RL's own here: the rollout on a batch and the scoring episodes,
-the model in the checkpoint, the champion as an SB3 zip, the TensorBoard logs
-and the figures ``scoring_steps`` and
+the model in the checkpoint, the champion as an SB3 zip (either framework),
+SB3's TensorBoard logs and the figures ``framework``, ``scoring_steps`` and
 ``champion_validation_normalized_reward``. The budget counts training steps
 only (spent in whole rollouts: a round starts only if its rollout fits in
 what is left); the steps of the scoring and validation episodes are reported
 apart (``scoring_steps``, ``validation_steps``). A checkpoint is written
 every ``eval_every`` training steps.
 
-**Run folder**: the loop's, and ``checkpoints/model-<round>.zip`` (the
+**Run folder** (SB3): the loop's, and ``checkpoints/model-<round>.zip`` (the
 model; the state names it, the model is written first and the state last,
 each atomically, so a kill between the two leaves the previous pair),
 ``checkpoints/champion.zip`` + ``.json``; ``agent.zip`` + ``agent.json``;

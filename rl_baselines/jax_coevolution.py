@@ -111,13 +111,8 @@ class JaxCoevolutionRun(RLCoevolutionRun):
         assert isinstance(state, _JaxState)
         trainer = load_trainer(named_checkpoint(self, state.trainer_folder))
         c = self.config
-        settings = trainer.settings()
-        for key, value in {"algo": c.algo, "robot": c.robot, "n_envs": c.n_envs}.items():
-            if settings[key] != value:
-                raise c.error(
-                    f"checkpoint {str(self.checkpoint)!r}: its trainer's {key}"
-                    f" {settings[key]!r} is not the config's {value!r}"
-                )
+        expected = {"algo": c.algo, "robot": c.robot, "n_envs": c.n_envs}
+        trainer.check_settings(expected, f"checkpoint {str(self.checkpoint)!r}")
         self.trainer = trainer
         self.check_champion()
 

@@ -195,10 +195,7 @@ def load_jax_learner(
     )
     session = checked_session(data.get("session"), source)
     trainer = JaxTrainer.load(folder / TRAINER_FOLDER)
-    settings = trainer.settings()
-    for key, value in {"algo": algo, "robot": robot, "n_envs": n_envs}.items():
-        if settings[key] != value:
-            raise RLConfigError(f"{source}: its trainer's {key} {settings[key]!r} is not {value!r}")
+    trainer.check_settings({"algo": algo, "robot": robot, "n_envs": n_envs}, source)
     if trainer.num_timesteps != steps:
         raise RLConfigError(
             f"{source}: num_timesteps {steps} is not the {trainer.num_timesteps} of its"

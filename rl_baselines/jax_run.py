@@ -107,7 +107,6 @@ class JaxRun(DirectRun):
         steps = self.restore_state(state_file)
         trainer = JaxTrainer.load(trainer_folder)
         c = self.config
-        settings = trainer.settings()
         hp = checked_hyperparameters(
             c.algo, c.hyperparameters, robot_images=not as_robot(c.robot).discrete_inputs,
             n_envs=c.n_envs,
@@ -120,12 +119,7 @@ class JaxRun(DirectRun):
             "mazes": [maze.to_string() for maze in as_mazes(self._mazes())],
             "hyperparameters": hp.sb3_kwargs(),
         }
-        for key, value in expected.items():
-            if settings[key] != value:
-                raise RLConfigError(
-                    f"checkpoint {str(trainer_folder)!r}: {key} {settings[key]!r} is not the"
-                    f" run's {value!r}"
-                )
+        trainer.check_settings(expected, f"checkpoint {str(trainer_folder)!r}")
         if trainer.num_timesteps != steps:
             raise RLConfigError(
                 f"checkpoint file {str(state_file)!r}: num_timesteps {steps} is not the"

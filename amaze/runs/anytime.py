@@ -137,7 +137,7 @@ class EvaluationSet:
         """
         if config.regime != "direct":
             training = [config.target]
-        elif getattr(config, "evaluation_maze", None) is not None:
+        elif config.evaluation_maze is not None:
             training = [config.evaluation_maze]
         else:
             training = config.mazes

@@ -429,6 +429,16 @@ class JaxTrainer:
             "chunk_steps": self.chunk * hp.rollout_size,
         }
 
+    def check_settings(self, expected: Mapping[str, Any], source: str) -> None:
+        """Refuse (:class:`RLConfigError` naming ``source``) a trainer whose
+        :meth:`settings` differ from ``expected`` in any of its keys."""
+        settings = self.settings()
+        for key, value in expected.items():
+            if settings[key] != value:
+                raise RLConfigError(
+                    f"{source}: its trainer's {key} {settings[key]!r} is not {value!r}"
+                )
+
     def save(self, folder: str | os.PathLike) -> Path:
         """Write the trainer into ``folder`` (see :mod:`rl_baselines.jax.storage`); its path."""
         from rl_baselines.jax.storage import save_trainer

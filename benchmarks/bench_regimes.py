@@ -31,7 +31,8 @@ with its effect size (Cliff's delta, from -1 to 1). With a seconds budget
 runs are sequential (each has the whole machine); with ``--steps`` they
 may run ``--jobs`` at a time (the same steps give the same result).
 ``--regimes`` picks some (default ``dr edens coevolution``); ``--algorithm``
-gives other options (JSON).
+gives other options (JSON); ``--slip P`` makes the robots of the coevolution
+regimes slip (:mod:`evolution.slip`).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from pathlib import Path
 
 from scipy.stats import mannwhitneyu
 
+from amaze.curriculum.regimes import COEVOLUTION_REGIMES
 from amaze.curriculum.validation import unseen_mazes
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from evolution.agent_file import load_agent
@@ -74,6 +76,8 @@ def command(folder: Path, regime: str, seed: int, args: argparse.Namespace) -> l
     config["robot"] = args.robot
     if regime == "edens-populations" and args.selector is not None:
         config["selector"] = args.selector
+    if args.slip:
+        config["slip"] = args.slip
     config.update(budget_seconds=args.seconds, budget_steps=args.steps)
     config_file = folder.parent / f"{folder.name}.json"
     config_file.write_text(json.dumps(config))
@@ -139,7 +143,14 @@ def main() -> None:
         "--selector", type=json.loads, default=None,
         help="edens-populations' selector options (JSON; default: the regime's)",
     )  # fmt: skip
+    parser.add_argument(
+        "--slip", type=float, default=0.0,
+        help="the coevolution regimes' slip probability (evolution.slip; default 0)",
+    )  # fmt: skip
     args = parser.parse_args()
+    unslipped = [r for r in args.regimes if REGIMES[r]["regime"] not in COEVOLUTION_REGIMES]
+    if args.slip and unslipped:
+        parser.error(f"--slip acts in coevolution and edens-populations only, not {unslipped}")
     if args.seconds is None and args.steps is None:
         args.seconds = 300.0
     if args.algorithm is None:

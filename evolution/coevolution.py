@@ -7,7 +7,7 @@ the population, the champion on validation mazes, budgets, checkpoints,
 algorithm as its learner; a round is a *generation*::
 
     batch = mazes.propose()                      # the loop
-    result = play(algorithm.ask(), batch)        # every agent, every maze, 4 rotations
+    result = play(algorithm.ask(), batch)        # every agent, every maze, 4 rotations (slips)
     algorithm.tell(candidates, result.fitness)   # fitness: mean over the batch
     mazes.update(batch, per-maze results)        # the loop
     validate(the generation's best agents)       # the loop, every validation_every-th
@@ -57,6 +57,7 @@ from evolution.checkpoint import evolution_codec
 from evolution.config import EvolveConfig
 from evolution.generations import ChosenAgent, chosen_policy, save_chosen, search_stop_reason
 from evolution.population import EvaluationBackend
+from evolution.slip import SlippingPopulation
 
 __all__ = ["EvolutionCoevolutionRun"]
 
@@ -168,6 +169,8 @@ class EvolutionCoevolutionRun(CoevolutionRun):
         )
         clock.lap("mazes")
         policy = algorithm.population_policy(candidates)
+        if c.slip:  # generation g of seed s slips as (s, g) says: a resumed run slips alike
+            policy = SlippingPopulation(policy, c.slip, [c.seed, s.round])
         clock.lap("breeding")
         result = evaluator.evaluate(policy)
         clock.lap("evaluation")

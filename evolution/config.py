@@ -22,6 +22,7 @@ from evolution import EvolutionConfigError
 from evolution.algorithms import ALGORITHMS, algorithm_class
 from evolution.neat.config import NeatConfig
 from evolution.population import FITNESS, OLD_FITNESS
+from evolution.slip import check_slip
 
 __all__ = [
     "COEVOLUTION_CMAES",
@@ -104,6 +105,12 @@ class EvolveConfig(RegimeConfig):
     checkpoint_seconds: float = option(
         10.0, "seconds of run time between checkpoints (0: after every generation)"
     )
+    slip: float = option(
+        0.0,
+        "probability that a training step's action is replaced by a random one"
+        " (evolution.slip; robots with discrete actions)",
+        regimes=COEVOLUTION_REGIMES,
+    )
     algorithm: dict[str, Any] = option(
         default_factory=dict,
         help="the algorithm's options (CMAESConfig or NeatConfig fields)",
@@ -139,6 +146,11 @@ class EvolveConfig(RegimeConfig):
         self.checkpoint_seconds = check_number(
             "checkpoint_seconds", self.checkpoint_seconds, minimum=0, error=self.error
         )
+        self.slip = check_slip(self.slip)
+        if self.slip and not as_robot(self.robot).discrete_outputs:
+            raise EvolutionConfigError(
+                f"slip {self.slip} needs a robot with discrete actions, not {self.robot}"
+            )
         if not isinstance(self.algorithm, dict):
             raise EvolutionConfigError(f"algorithm {self.algorithm!r} is not a JSON object")
         # every option the algorithm uses, defaults filled in: config.json says what ran

@@ -51,6 +51,7 @@ SAMPLES: dict[str, Any] = {
     "coevolution": {"capacity": 8},
     "selector": {"epoch": 5},
     "max_generations": 3,
+    "slip": 0.1,
 }
 
 

@@ -10,10 +10,12 @@ Why: in a maze played from its start, a memoryless agent that never errs
 never enters a cell of the solution path from the goal's side, so the
 situation "a clue pointing back the way I came" never arises, and nothing
 selects the right answer there (follow the clue). Most of the input-recognition
-errors of co-evolved DD agents are exactly these (docs/regimes/coevolution.md,
-"Input recognition"). Slips put agents off the path, and the agents that read
-the clues back to it reach the goal sooner. The agents never see the
-input-recognition inputs: they only play mazes.
+errors of co-evolved DD agents are exactly these. Slips put agents off the
+path, and the agents that read the clues back to it reach the goal sooner.
+The agents never see the input-recognition inputs: they only play mazes. At
+600 M env steps, 5 seeds, slips of 0.3 lift co-evolution's median input
+recognition from 0.914 to 1.000; at 20 s they cost suite success, so they
+are off by default (docs/regimes/coevolution.md, "Measured").
 
 **Common random numbers.** The slips of a generation are drawn per *episode*
 (maze and rotation) and step, not per agent: every individual playing

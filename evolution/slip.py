@@ -38,14 +38,12 @@ from typing import Any
 
 import numpy as np
 
+from amaze.evaluation.controllers import N_ACTIONS  # E, N, W, S: what a slip draws from
 from amaze.validation import check_number
 from evolution import EvolutionConfigError
 from evolution.population import PopulationPolicy
 
-__all__ = ["N_ACTIONS", "SlippingPopulation", "check_slip"]
-
-#: The discrete actions a slip draws from (E, N, W, S).
-N_ACTIONS = 4
+__all__ = ["SlippingPopulation", "check_slip"]
 
 
 def check_slip(value: object) -> float:
@@ -108,5 +106,5 @@ class SlippingPopulation:
         actions = np.asarray(self.population(observations))
         slips = self._rng.random(self._episodes) < self.probability
         drawn = self._rng.integers(0, N_ACTIONS, self._episodes)
-        slipping = np.tile(slips, self.n_policies)
-        return np.where(slipping, np.tile(drawn, self.n_policies), actions).astype(actions.dtype)
+        by_individual = actions.reshape(self.n_policies, self._episodes)  # (P, M): rows share slips
+        return np.where(slips, drawn, by_individual).astype(actions.dtype).reshape(-1)

@@ -19,12 +19,32 @@ import math
 from numbers import Integral, Real
 from typing import Any
 
-__all__ = ["MAX_JSON_DEPTH", "check_integer", "check_number", "nests_within", "parse_json"]
+__all__ = [
+    "MAX_HIDDEN_LAYERS",
+    "MAX_JSON_DEPTH",
+    "MAX_LAYER_WIDTH",
+    "MAX_ROLLOUT_SAMPLES",
+    "check_integer",
+    "check_layer_widths",
+    "check_number",
+    "nests_within",
+    "parse_json",
+]
 
 #: Deepest nesting of arrays and objects :func:`parse_json` accepts. The
 #: project's files nest a few levels; a document nested hundreds deep would
 #: exhaust Python's recursion later, in whatever code walks it.
 MAX_JSON_DEPTH = 100
+#: Widest hidden layer and most hidden layers a network of any trainer may ask for:
+#: bounds checked before a network is built, so that no config or file can make
+#: the program allocate without limit (the networks of the paper have two layers of 64).
+MAX_LAYER_WIDTH = 4096
+MAX_HIDDEN_LAYERS = 16
+#: The most samples (``n_steps * n_envs``) one RL rollout may hold, in any
+#: trainer or file: the rollout is allocated whole, so its size is bounded
+#: before it exists. Far above common setups (SB3's default is 2,048 x 4);
+#: about 1 GiB of observations for DD and H15 robots.
+MAX_ROLLOUT_SAMPLES = 1 << 22
 
 
 def _integer_kind(minimum: int | None, maximum: int | None) -> str:
@@ -103,6 +123,28 @@ def check_number(
             bounds = f"<= {maximum}"
         raise error(f"{name} {value!r} is not a number {bounds}")
     return number
+
+
+def check_layer_widths(
+    name: str, value: object, *, error: type[ValueError] = ValueError
+) -> tuple[int, ...]:
+    """``value`` as a tuple of hidden-layer widths, each in [1, :data:`MAX_LAYER_WIDTH`],
+    at most :data:`MAX_HIDDEN_LAYERS` of them; ``error`` naming ``name`` otherwise.
+
+    >>> check_layer_widths("net_arch", [64, 64])
+    (64, 64)
+    >>> check_layer_widths("net_arch", [1000000])
+    Traceback (most recent call last):
+    ValueError: net_arch layer 1000000 is not an integer in [1, 4096]
+    """
+    if isinstance(value, str | bytes) or not isinstance(value, list | tuple):
+        raise error(f"{name} {value!r} is not a list of layer widths")
+    if len(value) > MAX_HIDDEN_LAYERS:
+        raise error(f"{name} has {len(value)} layers, more than {MAX_HIDDEN_LAYERS}")
+    return tuple(
+        check_integer(f"{name} layer", width, minimum=1, maximum=MAX_LAYER_WIDTH, error=error)
+        for width in value
+    )
 
 
 def parse_json(

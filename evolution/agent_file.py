@@ -25,15 +25,14 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-import zipfile
-import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from amaze.agents.robot import RobotStringError, as_robot
+from amaze.archives import open_npz
 from amaze.errors import AmazeError
 from evolution import EvolutionConfigError
 from evolution.networks import NetworkSpec
@@ -59,6 +58,11 @@ SUFFIX = ".npz"
 #: tells them, and of a single .npy array.
 _ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 _NPY_MAGIC = b"\x93NUMPY"
+#: Bounds checked before an agent file's arrays are inflated: one array, the
+#: metadata string, and the whole file once inflated (agents are kilobytes).
+MAX_ARRAY_BYTES = 64 << 20
+MAX_METADATA_BYTES = 16 << 20
+MAX_AGENT_BYTES = 256 << 20
 
 
 class AgentFileError(EvolutionConfigError, AmazeError):
@@ -159,57 +163,94 @@ def read_agent(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict[str
     if not path.is_file():
         what = "is not a file" if path.exists() else "does not exist"
         raise AgentFileError(f"agent file '{path}' {what}")
+    where = f"agent file '{path}'"
     try:
         with path.open("rb") as stream:
             head = stream.read(len(_NPY_MAGIC))
-        if head == _NPY_MAGIC:
-            raise AgentFileError(f"agent file '{path}' holds a single array, not an .npz archive")
-        if not head.startswith(_ZIP_MAGIC):  # numpy would try it as a pickle, and refuse it
-            raise AgentFileError(f"agent file '{path}' is not a readable .npz archive: not a zip")
-        archive = np.load(path, allow_pickle=False)
-        if not isinstance(archive, np.lib.npyio.NpzFile):
-            raise AgentFileError(f"agent file '{path}' holds a single array, not an .npz archive")
-        with archive:
-            contents = {name: archive[name] for name in archive.files}
-    except AgentFileError:
-        raise
-    except (
-        OSError,
-        ValueError,
-        EOFError,
-        KeyError,
-        RuntimeError,
-        NotImplementedError,  # zipfile: an entry compressed by an unsupported method
-        zipfile.BadZipFile,
-        zlib.error,
-    ) as error:
-        raise AgentFileError(
-            f"agent file '{path}' is not a readable .npz archive: {error}"
-        ) from None
-    for name, value in contents.items():
-        if not isinstance(value, np.ndarray):  # numpy hands back the raw bytes of a non-.npy entry
-            raise AgentFileError(f"agent file '{path}': entry {name!r} is not a .npy array")
-    if METADATA_KEY not in contents:
-        raise AgentFileError(f"agent file '{path}' has no '{METADATA_KEY}' entry")
-    raw = contents.pop(METADATA_KEY)
-    if raw.shape != () or raw.dtype.kind != "U":
-        raise AgentFileError(f"agent file '{path}': '{METADATA_KEY}' is not a JSON string")
+    except OSError as error:
+        raise AgentFileError(f"{where} cannot be read: {error.strerror or error}") from None
+    if head == _NPY_MAGIC:
+        raise AgentFileError(f"{where} holds a single array, not an .npz archive")
+    if not head.startswith(_ZIP_MAGIC):  # numpy would try it as a pickle, and refuse it
+        raise AgentFileError(f"{where} is not a readable .npz archive: not a zip")
+    with open_npz(
+        path,
+        where,
+        AgentFileError,
+        max_entry_bytes=MAX_ARRAY_BYTES,
+        max_total_bytes=MAX_AGENT_BYTES,
+    ) as archive:
+        if METADATA_KEY not in archive.names:
+            raise AgentFileError(f"{where} has no '{METADATA_KEY}' entry")
+        raw = archive.read(METADATA_KEY, _metadata_header(where))
+        metadata = _checked_metadata(raw, where)
+        expect = _expected_arrays(metadata, where)
+        contents = {
+            name: archive.read(name, expect) for name in archive.names if name != METADATA_KEY
+        }
+    return contents, metadata
+
+
+def _metadata_header(where: str) -> Callable[[str, tuple[int, ...], np.dtype], None]:
+    """The metadata entry's header must be one string of at most :data:`MAX_METADATA_BYTES`."""
+
+    def expect(name: str, shape: tuple[int, ...], dtype: np.dtype) -> None:
+        if shape != () or dtype.kind != "U":
+            raise AgentFileError(f"{where}: '{METADATA_KEY}' is not a JSON string")
+        if dtype.itemsize > MAX_METADATA_BYTES:
+            raise AgentFileError(
+                f"{where}: '{METADATA_KEY}' declares {dtype.itemsize:,} bytes, more than"
+                f" {MAX_METADATA_BYTES:,}"
+            )
+
+    return expect
+
+
+def _expected_arrays(
+    metadata: Mapping[str, Any], where: str
+) -> Callable[[str, tuple[int, ...], np.dtype], None]:
+    """What the arrays of an agent must be, from its metadata, checked before they are read.
+
+    A fixed network (``mlp``) holds ``params``: exactly the spec's parameters,
+    as floats. A NEAT-like genome's arrays are bounded by :data:`MAX_ARRAY_BYTES`
+    (checked on opening) and checked in full once read.
+    """
+    architecture = metadata["architecture"]
+    n_params = None
+    if architecture["type"] == "mlp":
+        try:
+            n_params = NetworkSpec.from_dict(architecture).n_params
+        except EvolutionConfigError as error:
+            raise AgentFileError(f"{where}: {error}") from None
+
+    def expect(name: str, shape: tuple[int, ...], dtype: np.dtype) -> None:
+        if dtype.kind not in "biuf":
+            raise AgentFileError(f"{where}: array {name!r} has dtype {dtype}, not numbers")
+        if n_params is not None and name == "params" and shape != (n_params,):
+            raise AgentFileError(
+                f"{where}: 'params' must be {n_params} floats, got {dtype} of shape {shape}"
+            )
+
+    return expect
+
+
+def _checked_metadata(raw: np.ndarray, where: str) -> dict[str, Any]:
+    """The agent's metadata JSON, checked (format, version, architecture)."""
     try:
         metadata = json.loads(str(raw[()]))
     except (ValueError, RecursionError) as error:  # bad JSON, too deep, too many digits
-        raise AgentFileError(f"agent file '{path}': metadata is not valid JSON ({error})") from None
+        raise AgentFileError(f"{where}: metadata is not valid JSON ({error})") from None
     if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
-        raise AgentFileError(f"agent file '{path}' is not an {FORMAT} file")
+        raise AgentFileError(f"{where} is not an {FORMAT} file")
     version = metadata.get("version")
     if type(version) is not int or version != FORMAT_VERSION:
         raise AgentFileError(
-            f"agent file '{path}' has format version {version!r}; this code reads version"
-            f" {FORMAT_VERSION}"
+            f"{where} has format version {version!r}; this code reads version {FORMAT_VERSION}"
         )
     architecture = metadata.get("architecture")
     if not isinstance(architecture, dict) or not isinstance(architecture.get("type"), str):
-        raise AgentFileError(f"agent file '{path}': metadata has no valid 'architecture'")
-    return contents, metadata
+        raise AgentFileError(f"{where}: metadata has no valid 'architecture'")
+    return metadata
 
 
 def load_agent(path: str | os.PathLike) -> Any:

@@ -78,7 +78,7 @@ import numpy as np
 
 from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, RobotStringError, as_robot
-from amaze.validation import check_integer
+from amaze.validation import MAX_HIDDEN_LAYERS, MAX_LAYER_WIDTH, check_integer, check_layer_widths
 from evolution import EvolutionConfigError
 from evolution.activations import ACTIVATION_CODES, ACTIVATIONS, activate_block, tanh32
 from evolution.convolution import (
@@ -110,8 +110,9 @@ DEFAULT_POOL = 5
 N_DISCRETE_INPUTS = 8
 N_DISCRETE_ACTIONS = 4
 N_CONTINUOUS_OUTPUTS = 2
-#: Widest hidden layer accepted (a sanity bound, far above what evolution uses).
-MAX_WIDTH = 4096
+#: Widest hidden layer accepted (the bound shared by every trainer's networks,
+#: far above what evolution uses; at most MAX_HIDDEN_LAYERS of them).
+MAX_WIDTH = MAX_LAYER_WIDTH
 
 _MODE_DISCRETE, _MODE_CONTINUOUS = 0, 1
 
@@ -161,12 +162,11 @@ class NetworkSpec:
             hidden = (hidden,)
         if isinstance(hidden, str) or not isinstance(hidden, Sequence):
             raise EvolutionConfigError(f"hidden {hidden!r} must be a list of layer widths")
-        widths = tuple(
-            check_integer(
-                "hidden layer width", h, minimum=1, maximum=MAX_WIDTH, error=EvolutionConfigError
+        if len(hidden) > MAX_HIDDEN_LAYERS:  # before a long sequence is copied
+            raise EvolutionConfigError(
+                f"hidden has {len(hidden)} layers, more than {MAX_HIDDEN_LAYERS}"
             )
-            for h in hidden
-        )
+        widths = check_layer_widths("hidden", tuple(hidden), error=EvolutionConfigError)
         object.__setattr__(self, "hidden", widths)
         if self.activation not in ACTIVATIONS:
             raise EvolutionConfigError(

@@ -27,6 +27,7 @@ each algorithm.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import combinations
@@ -38,6 +39,9 @@ __all__ = [
     "Grid",
     "StudyComparison",
     "default_comparisons",
+    "is_name",
+    "is_text",
+    "key_shown",
     "one_factor_pairs",
     "parse_comparisons",
 ]
@@ -48,9 +52,40 @@ MAX_LINES = 8
 COMPARISON_KEYS = frozenset({"name", "title", "budget", "robot", "treatments", "pairs"})
 #: Most comparisons a study declares.
 MAX_COMPARISONS = 200
+#: Longest title of a comparison (a heading of the report).
+MAX_TITLE = 200
 
 #: How a value's problem becomes the error naming the study file.
 Bad = Callable[[str], Exception]
+
+#: A name in a study (a budget's, a comparison's): it becomes part of file names and
+#: of the report's CSV files, so ASCII letters, digits and dashes, starting with a
+#: letter or a digit, at most 64 characters.
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9-]{0,63}")
+#: What a message says a name is.
+NAME_RULE = "made of letters, digits and dashes (ASCII, at most 64, starting with no dash)"
+
+
+def is_name(value: Any) -> bool:
+    """Whether ``value`` is a name of :data:`NAME`'s form."""
+    return isinstance(value, str) and NAME.fullmatch(value) is not None
+
+
+def is_text(value: Any, lines: bool = False) -> bool:
+    """Whether ``value`` is a printable string: no control or format character (an escape,
+    a bidi override); ``lines``: tabs and newlines allowed. A terminal, the report and a
+    spreadsheet show such a string as it is."""
+    if not isinstance(value, str):
+        return False
+    if lines:
+        value = value.translate(dict.fromkeys(map(ord, "\t\r\n"), " "))
+    return value.isprintable()
+
+
+def key_shown(key: str) -> str:
+    """A key of a table as a message names it: as it is when short printable text, else
+    escaped (``'\\x1b[2J'``)."""
+    return key if key and len(key) <= 64 and is_text(key) else ascii(key)
 
 
 class Grid(NamedTuple):
@@ -108,16 +143,20 @@ def _comparison(table: dict, index: int, grid: Grid, bad: Bad) -> list[StudyComp
     unknown = set(table) - COMPARISON_KEYS
     if unknown:
         raise bad(
-            f"{where}: unknown key(s) {', '.join(sorted(unknown))}"
+            f"{where}: unknown key(s) {', '.join(key_shown(k) for k in sorted(unknown))}"
             f" (known: {', '.join(sorted(COMPARISON_KEYS))})"
         )
     name = table.get("name")
-    if not isinstance(name, str) or not name or not name.replace("-", "").isalnum():
-        raise bad(f"{where}: name {_shown(name)} is not made of letters, digits and dashes")
+    if not is_name(name):
+        raise bad(f"{where}: name {_shown(name)} is not {NAME_RULE}")
     where = f"comparison {name!r}"
     title = table.get("title", name.replace("-", " "))
     if not isinstance(title, str) or not title.strip():
         raise bad(f"{where}: title {_shown(title)} is not a non-empty string")
+    if len(title) > MAX_TITLE:
+        raise bad(f"{where}: title {_shown(title)} is longer than {MAX_TITLE} characters")
+    if not is_text(title):
+        raise bad(f"{where}: title {_shown(title)} holds control characters")
     budget = _budget(table, grid, where, bad)
     robots = _robots(table, grid, where, bad)
     cells = _cells(table.get("treatments"), grid, where, bad)

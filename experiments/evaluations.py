@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -39,6 +40,7 @@ from experiments.study import PlannedRun, StudyError
 
 __all__ = [
     "AXES",
+    "MAX_FIGURE",
     "QUANTITIES",
     "ComparisonData",
     "EvaluationCurve",
@@ -57,6 +59,15 @@ AXES = {"env_steps": "environment steps", "training_seconds": "training time (s)
 NUMBERS = ("fraction", *AXES, *QUANTITIES)
 #: The most points a run's grid may have.
 MAX_POINTS = 10_000
+#: Largest ``evaluations.csv`` read (a row is a few hundred bytes; MAX_POINTS rows at most).
+MAX_EVALUATIONS_BYTES = 16 * 2**20
+#: Largest magnitude of a figure the report reads (steps, seconds, rates, rewards): beyond
+#: it a value is odd (``1e308``), and means, squares and axes would overflow.
+MAX_FIGURE = 1e15
+#: An evaluation set's digest: 16 hexadecimal digits as runs write it; any short name of
+#: ASCII letters, digits and dashes is read (it is a cell of ``runs.csv`` and a word of
+#: the report).
+DIGEST = re.compile(r"[A-Za-z0-9][A-Za-z0-9-]{0,63}")
 #: Bootstrap resamples of a band.
 REPS = 2000
 
@@ -85,16 +96,25 @@ def read_evaluations(folder: Path, run: PlannedRun) -> EvaluationCurve | None:
     """The run's ``evaluations.csv`` in ``folder``; ``None`` without one (or without a row).
 
     :class:`~experiments.study.StudyError` naming the file when it cannot be
-    read: not UTF-8 CSV, a missing column, a value that is not a finite
-    number, points that do not increase, rows of several evaluation sets.
+    read: larger than :data:`MAX_EVALUATIONS_BYTES`, not UTF-8 CSV, a
+    missing column or cell, a value that is not a finite number within
+    ±:data:`MAX_FIGURE`, points that do not increase, rows of several
+    evaluation sets, a digest that is not one (:data:`DIGEST`).
     """
     path = folder / EVALUATIONS_FILE
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as stream:
+            data = stream.read(MAX_EVALUATIONS_BYTES + 1)
+        text = data.decode("utf-8")
     except FileNotFoundError:
         return None
     except (OSError, UnicodeError) as problem:
         raise StudyError(f"evaluations {str(path)!r} cannot be read: {one_line(problem)}") from None
+    if len(data) > MAX_EVALUATIONS_BYTES:
+        raise StudyError(
+            f"evaluations {str(path)!r} holds more than the {MAX_EVALUATIONS_BYTES:,} bytes"
+            " a run's evaluations may"
+        )
     try:
         rows = list(csv.DictReader(io.StringIO(text)))
         return _curve(rows, run) if rows else None
@@ -108,22 +128,48 @@ def read_evaluations(folder: Path, run: PlannedRun) -> EvaluationCurve | None:
 
 def _curve(rows: list[dict[str, str]], run: PlannedRun) -> EvaluationCurve:
     """The curve of the rows of an ``evaluations.csv`` (ValueError/KeyError when not one)."""
-    points = [int(row["point"]) for row in rows]
+    for index, row in enumerate(rows, start=2):  # line 1 is the header
+        if None in row or None in row.values():  # more cells than the header, or fewer
+            raise ValueError(f"line {index} has more or fewer cells than the header")
+    points = [_point(row["point"]) for row in rows]
     if points[0] < 1 or any(b <= a for a, b in pairwise(points)) or points[-1] > MAX_POINTS:
         raise ValueError(f"points {_cut(points)} do not increase from 1 to at most {MAX_POINTS}")
     digests = sorted({row["evaluation_set"] for row in rows})
-    if len(digests) != 1 or not digests[0]:
-        raise ValueError(f"rows of several evaluation sets ({_cut(digests)})")
+    if len(digests) != 1:
+        raise ValueError(f"rows of several evaluation sets ({_cut(list(map(_shown, digests)))})")
+    if not DIGEST.fullmatch(digests[0]):
+        raise ValueError(f"evaluation set {_shown(digests[0])} is not a digest")
     # point p takes the first row at or after it: a stopped run's final agent fills the gap
     filled = np.searchsorted(points, np.arange(1, points[-1] + 1))
     columns = {}
     for name in NUMBERS:
-        values = np.array([float(row[name]) for row in rows])
-        bad = np.flatnonzero(~np.isfinite(values))
+        values = np.array([_float(row[name]) for row in rows])
+        bad = np.flatnonzero(~(np.abs(values) <= MAX_FIGURE))  # NaN and infinities too
         if bad.size:
-            raise ValueError(f"{name} {rows[bad[0]][name]!r} at point {points[bad[0]]}")
+            raise ValueError(f"{name} {_shown(rows[bad[0]][name])} at point {points[bad[0]]}")
         columns[name] = values[filled]
     return EvaluationCurve(run.id, run.treatment, digests[0], points[-1], tuple(points), columns)
+
+
+def _point(text: str) -> int:
+    """A point of the grid: a whole number of at most 18 digits (else ValueError naming it)."""
+    if not (text.isascii() and text.isdigit() and len(text) <= 18):
+        raise ValueError(f"point {_shown(text)} is not a whole number")
+    return int(text)
+
+
+def _float(text: str) -> float:
+    """``text`` as a float, NaN if it is not a number (the caller names it)."""
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
+
+
+def _shown(value: object, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a message."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[: limit - 4]}...{text[-1]}"
 
 
 def _cut(values: Sequence[object], limit: int = 6) -> str:

@@ -8,7 +8,9 @@
   recognition and its rate per input class, the final agent's success and
   R̄ on the evaluation set and the set's digest, the run's folder);
 * ``tests.csv``: every pairwise test (:mod:`experiments.stats`), with its n
-  and why its stars are withheld where they are;
+  and why its stars are withheld where they are (both CSV files: UTF-8, one
+  line a row, text a spreadsheet would run as a formula written with a
+  leading ``'``: :func:`~experiments.report_runs.spreadsheet_cell`);
 * ``figures/``: per comparison the study declares
   (:mod:`experiments.comparisons`), learning curves and a performance
   profile from the anytime evaluations (:mod:`experiments.curves`); the

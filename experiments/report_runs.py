@@ -20,7 +20,7 @@ from typing import Any
 from amaze.errors import one_line
 from amaze.runs.config import read_json_object
 from amaze.runs.lifecycle import SUMMARY_FILE
-from experiments.evaluations import EvaluationCurve, collect_curves
+from experiments.evaluations import MAX_FIGURE, EvaluationCurve, collect_curves
 from experiments.runner import StudyFolder
 from experiments.study import PlannedRun, Study, StudyError
 
@@ -31,6 +31,7 @@ __all__ = [
     "collect_rows",
     "read_runs",
     "read_summary",
+    "spreadsheet_cell",
     "to_csv",
 ]
 
@@ -80,21 +81,39 @@ class LeftOut:
 
 
 def _number(value: Any) -> float:
-    return (
-        float(value) if isinstance(value, int | float) and not isinstance(value, bool) else math.nan
-    )
+    """``value`` as a float if it is a number within ±:data:`MAX_FIGURE`, else NaN (an empty cell).
+
+    NaN, infinities, ``1e308`` and integers too large for a float (``10**400``)
+    are odd figures, not numbers to average.
+    """
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return math.nan
+    if isinstance(value, int) and not -MAX_FIGURE <= value <= MAX_FIGURE:
+        return math.nan  # before float(), which refuses integers beyond a float's range
+    number = float(value)
+    return number if -MAX_FIGURE <= number <= MAX_FIGURE else math.nan
+
+
+def _shown(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a message."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[: limit - 4]}...{text[-1]}"
 
 
 def read_summary(path: Path) -> dict[str, Any]:
     """The summary in ``path``: a JSON object with its ``env_steps``; StudyError naming it else.
 
-    The other figures are read as numbers where they are numbers (a missing
-    or odd one is an empty cell, as for a trainer that does not report it).
+    ``env_steps`` must be a number in ``0 .. MAX_FIGURE``. The other figures
+    are read as numbers where they are numbers within ±:data:`MAX_FIGURE`
+    (a missing or odd one, such as NaN, an infinity or ``10**400``, is an
+    empty cell, as for a trainer that does not report it).
     """
     summary = read_json_object(path, StudyError, "summary")
     steps = summary.get("env_steps")
-    if isinstance(steps, bool) or not isinstance(steps, int | float) or not 0 <= steps < math.inf:
-        raise StudyError(f"summary {str(path)!r}: env_steps {steps!r} is not a number of steps")
+    if not 0 <= _number(steps):  # NaN is not
+        raise StudyError(
+            f"summary {str(path)!r}: env_steps {_shown(steps)} is not a number of steps"
+        )
     return summary
 
 
@@ -140,7 +159,7 @@ def _row(
         "seconds": _number(summary.get("seconds")),
         "budget_unit": run.budget_unit or "",
         "budget_spent": budget_share(run, summary),
-        "stopped_early": summary.get("stopped_early") or "",
+        "stopped_early": _text(summary.get("stopped_early")),
         "wall_seconds": wall,
         "threads": threads if isinstance(threads, int) else "",
         "core_seconds": wall * threads if isinstance(threads, int) else math.nan,
@@ -206,12 +225,39 @@ def collect_rows(
     return rows
 
 
+#: What a spreadsheet takes for the start of a formula in a text cell.
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_cell(value: Any) -> Any:
+    """``value`` as a cell of the report's CSV files: NaN empty, text never a formula.
+
+    Text that starts as a formula does (``=HYPERLINK(...)``, ``+cmd|...``,
+    ``@SUM(1)``, ``-2+3``, a tab or a carriage return: a summary's
+    ``stopped_early``, a study's name) gets a leading ``'``, which a
+    spreadsheet shows as text; numbers stay numbers, negative ones included.
+    Line breaks in text become spaces: a cell is one line, and a carriage
+    return can never end a row and start a formula on the next.
+    """
+    if isinstance(value, float) and math.isnan(value):
+        return ""
+    if isinstance(value, str):
+        if value.startswith(FORMULA_STARTS):
+            value = "'" + value
+        return value.replace("\r", " ").replace("\n", " ")
+    return value
+
+
+def _text(value: Any) -> str:
+    """A summary's text figure (``stopped_early``): a string, else empty."""
+    return value if isinstance(value, str) else ""
+
+
 def to_csv(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> bytes:
+    """``rows`` as CSV (UTF-8) with ``columns``, each value a :func:`spreadsheet_cell`."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
     writer.writeheader()
     for row in rows:
-        writer.writerow(
-            {k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
-        )
+        writer.writerow({k: spreadsheet_cell(v) for k, v in row.items()})
     return buffer.getvalue().encode("utf-8")

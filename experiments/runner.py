@@ -83,6 +83,10 @@ POLL_SECONDS = 0.5
 #: Seconds a runner waits for a held lock before it is refused (``status``
 #: holds it for an instant while it looks).
 LOCK_WAIT_SECONDS = 1.0
+#: Largest ``progress.csv`` read whole; of a larger one, its header and last rows.
+MAX_PROGRESS_BYTES = 4 * 2**20
+#: How much of the end of a larger ``progress.csv`` is read.
+PROGRESS_TAIL_BYTES = 2**16
 
 
 @dataclass(frozen=True)
@@ -167,9 +171,8 @@ def spent_fraction(folder: Path, run: PlannedRun) -> float:
     Steps when the budget has steps (the ``steps`` column), else seconds
     (``seconds``, summed over the rows of a curriculum, whose rows are branches).
     """
-    path = folder / "progress.csv"
     try:  # a log that cannot be read counts as nothing spent: the bar is only a guide
-        rows = list(csv.DictReader(io.StringIO(path.read_text(encoding="utf-8"))))
+        rows = list(csv.DictReader(io.StringIO(_progress_text(folder / "progress.csv"))))
     except (OSError, UnicodeError, csv.Error):
         return 0.0
     if not rows:
@@ -190,6 +193,21 @@ def spent_fraction(folder: Path, run: PlannedRun) -> float:
     return min(1.0, fraction) if fraction >= 0 else 0.0
 
 
+def _progress_text(path: Path) -> str:
+    """The text of a ``progress.csv``: whole up to :data:`MAX_PROGRESS_BYTES`, else its
+    header and the whole rows of its last :data:`PROGRESS_TAIL_BYTES` (the last row is what
+    counts; a curriculum's seconds are then summed over those rows only)."""
+    with path.open("rb") as stream:
+        size = os.fstat(stream.fileno()).st_size
+        if size <= MAX_PROGRESS_BYTES:
+            data = stream.read(MAX_PROGRESS_BYTES)
+        else:
+            header = stream.readline(PROGRESS_TAIL_BYTES)
+            stream.seek(size - PROGRESS_TAIL_BYTES)
+            data = header + stream.read(PROGRESS_TAIL_BYTES).partition(b"\n")[2]
+    return data.decode("utf-8")
+
+
 #: What each key of ``state.json`` holds: a list or an object, and its items' types and name.
 STATE_KEYS: dict[str, tuple[type, tuple[type, ...], str]] = {
     "running": (list, (str,), "a run's id"),
@@ -197,6 +215,9 @@ STATE_KEYS: dict[str, tuple[type, tuple[type, ...], str]] = {
     "wall_seconds": (dict, (int, float), "a number"),
     "threads": (dict, (int,), "an integer"),
 }
+#: The largest value of the numbers of ``state.json`` (each is at least 0): a run's
+#: wall-clock seconds (about 30,000 years) and the threads it was given.
+STATE_LIMITS = {"wall_seconds": 10**12, "threads": 2**20}
 
 
 def checked_state(state: dict[str, Any], path: Path) -> dict[str, Any]:
@@ -215,9 +236,12 @@ def checked_state(state: dict[str, Any], path: Path) -> dict[str, Any]:
         value = state.setdefault(key, kind())
         if not isinstance(value, kind):
             raise bad(f"{key} {_cut(value)} is not {'a list' if kind is list else 'an object'}")
+        limit = STATE_LIMITS.get(key)
         for item in value if kind is list else value.values():
             if isinstance(item, bool) or not isinstance(item, items):
                 raise bad(f"{key} holds {_cut(item)}, not {named}")
+            if limit is not None and not 0 <= item <= limit:  # NaN is neither
+                raise bad(f"{key} holds {_cut(item)}, not {named} in [0, {limit:,}]")
     return state
 
 
@@ -402,7 +426,7 @@ def study_status(out: str | os.PathLike) -> tuple[Study, list[RunStatus]]:
                 RunStatus(
                     run,
                     "failed",
-                    f"exit {failure.get('status')}, see {folder.log_file(run)}",
+                    f"exit {_cut(failure.get('status'))}, see {folder.log_file(run)}",
                 )
             )
         elif (folder.run_folder(run) / CONFIG_FILE).exists():

@@ -41,9 +41,13 @@ treatment runs once per seed. Every run's config is built and checked by its tra
 when the study is read, and so are a curriculum's curator options (by
 building its curator), so a bad study fails before anything runs, with a
 message naming the file and the run. Checks that cost nothing come first:
-the file's nesting (at most :data:`MAX_DEPTH`), the seeds (``0 .. 2**32 - 1``,
-what a run's seed may be) and the number of runs, counted from the grid
-before a single run is built (at most :data:`MAX_RUNS`).
+the file's size (at most :data:`MAX_STUDY_BYTES`) and nesting (at most
+:data:`MAX_DEPTH`), the seeds (``0 .. 2**32 - 1``, what a run's seed may
+be) and the number of runs, counted from the grid before a single run is
+built (at most :data:`MAX_RUNS`). The study's name, description and
+comparison titles are printable text (no control character), and its
+budget and comparison names short ASCII names (they become file names and
+cells of the report's CSV files).
 
 A *comparison* (``[[comparisons]]``) is what one figure of the report
 compares: up to :data:`MAX_LINES` trainer/algorithm cells of the grid
@@ -69,14 +73,18 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-from amaze.errors import AmazeError, UsageError
+from amaze.errors import AmazeError, UsageError, one_line
 from amaze.runs.config import MAX_SEED
 from amaze.validation import nests_within
 from experiments.comparisons import (
     MAX_LINES,
+    NAME_RULE,
     Grid,
     StudyComparison,
     default_comparisons,
+    is_name,
+    is_text,
+    key_shown,
     parse_comparisons,
 )
 from experiments.trainers import (
@@ -113,6 +121,14 @@ MAX_RUNS = 10_000
 #: levels (``options.ppo.hyperparameters``); its runs' configs are JSON files,
 #: read back with a limit of their own (:data:`amaze.validation.MAX_JSON_DEPTH`).
 MAX_DEPTH = 32
+#: Largest study file, in bytes (the shipped ones hold a few kilobytes).
+MAX_STUDY_BYTES = 2**20
+#: Longest study name (a heading of the report, a cell of ``runs.csv``).
+MAX_NAME = 200
+#: Largest steps budget: 2**53, the largest count a float holds exactly (the report's shares).
+MAX_BUDGET_STEPS = 2**53
+#: Longest message of a run's config check (one may list every unknown key).
+MAX_PROBLEM = 500
 
 #: How a value's problem becomes the error naming the study file.
 Bad = Callable[[str], "StudyError"]
@@ -221,11 +237,17 @@ def load_study(name_or_path: str | Path) -> Study:
 
 
 def read_study_text(path: Path, source: str) -> str:
-    """The text of the study file ``path``; :class:`StudyError` naming ``source`` otherwise."""
+    """The text of the study file ``path``; :class:`StudyError` naming ``source`` otherwise.
+
+    A file of more than :data:`MAX_STUDY_BYTES` is refused before it is read whole.
+    """
     try:
-        data = path.read_bytes()
+        with path.open("rb") as stream:
+            data = stream.read(MAX_STUDY_BYTES + 1)
     except OSError as problem:
         raise StudyError(f"{source} cannot be read: {problem.strerror or problem}") from None
+    if len(data) > MAX_STUDY_BYTES:
+        raise StudyError(f"{source} holds more than the {MAX_STUDY_BYTES:,} bytes a study may")
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as problem:
@@ -244,14 +266,21 @@ def parse_study(text: str, source: str = "study") -> Study:
     unknown = set(data) - STUDY_KEYS
     if unknown:
         raise bad(
-            f"unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(STUDY_KEYS))})"
+            f"unknown key(s) {', '.join(key_shown(k) for k in sorted(unknown))}"
+            f" (known: {', '.join(sorted(STUDY_KEYS))})"
         )
     name = data.get("name")
     if not isinstance(name, str) or not name.strip():
-        raise bad(f"name {name!r} is not a non-empty string")
+        raise bad(f"name {_shown(name)} is not a non-empty string")
+    if len(name) > MAX_NAME:
+        raise bad(f"name {_shown(name)} is longer than {MAX_NAME} characters")
+    if not is_text(name):
+        raise bad(f"name {_shown(name)} holds control characters")
     description = data.get("description", "")
     if not isinstance(description, str):
-        raise bad(f"description {description!r} is not a string")
+        raise bad(f"description {_shown(description)} is not a string")
+    if not is_text(description, lines=True):
+        raise bad(f"description {_shown(description)} holds control characters")
     seeds = _seeds(data.get("seeds", 1), bad)
     robots = _robots(data.get("robot", "DD"), bad)
     trainers = _names(data.get("trainers"), "trainers", TRAINERS, bad)
@@ -283,6 +312,9 @@ def _toml(text: str, source: str, bad: Bad) -> dict[str, Any]:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as problem:
         raise StudyError(f"{source} is not valid TOML: {problem}") from None
+    except ValueError as problem:  # an integer of more digits than Python converts
+        reason = one_line(problem).split("; use sys.")[0]  # not the hint to Python programmers
+        raise StudyError(f"{source} is not valid TOML: {reason}") from None
     except RecursionError:  # the parser recurses once per level
         raise bad(f"tables or arrays nest more than {MAX_DEPTH} deep") from None
     if not nests_within(data, MAX_DEPTH):
@@ -306,7 +338,7 @@ def _seeds(value: Any, bad: Bad) -> list[int]:
     """Seeds ``0 .. value - 1`` (a number of replicates), or the list of seeds given."""
     if isinstance(value, int) and not isinstance(value, bool):
         if not 1 <= value <= 1000:
-            raise bad(f"seeds {value} is not in 1..1000 (replicates)")
+            raise bad(f"seeds {_shown(value)} is not in 1..1000 (replicates)")
         return list(range(value))
     if (
         isinstance(value, list)
@@ -315,11 +347,17 @@ def _seeds(value: Any, bad: Bad) -> list[int]:
     ):
         for seed in value:
             if not 0 <= seed <= MAX_SEED:
-                raise bad(f"seed {seed} is not in 0..{MAX_SEED} (2**32 - 1)")
+                raise bad(f"seed {_shown(seed)} is not in 0..{MAX_SEED} (2**32 - 1)")
         if len(set(value)) != len(value):
             raise bad(f"seeds {_shown(value)} repeats a seed")
         return list(value)
     raise bad(f"seeds {_shown(value)} is neither a number of replicates nor a list of seeds")
+
+
+def _problem(problem: Exception) -> str:
+    """A config check's message on one line, cut to :data:`MAX_PROBLEM` characters."""
+    text = one_line(problem)
+    return text if len(text) <= MAX_PROBLEM else f"{text[: MAX_PROBLEM - 3]}..."
 
 
 def _shown(value: Any, limit: int = 80) -> str:
@@ -351,13 +389,16 @@ def _names(value: Any, what: str, known: Any, bad: Bad) -> list[str]:
 
 def _budgets(value: Any, bad: Bad) -> dict[str, dict[str, Any]]:
     if not isinstance(value, dict) or not value:
-        raise bad(f"budgets {value!r} is not a table of named budgets")
+        raise bad(f"budgets {_shown(value)} is not a table of named budgets")
     budgets = {}
     for name, budget in value.items():
-        if not name.replace("-", "").isalnum():
-            raise bad(f"budget name {name!r} is not made of letters, digits and dashes")
+        if not is_name(name):
+            raise bad(f"budget name {_shown(name)} is not {NAME_RULE}")
         if not isinstance(budget, dict) or not budget or set(budget) - {"steps", "seconds"}:
-            raise bad(f"budget {name!r} = {budget!r} is not a table of steps and/or seconds")
+            raise bad(f"budget {name!r} = {_shown(budget)} is not a table of steps and/or seconds")
+        steps = budget.get("steps")
+        if isinstance(steps, int) and steps > MAX_BUDGET_STEPS:
+            raise bad(f"budget {name!r}: steps {_shown(steps)} is more than {MAX_BUDGET_STEPS:,}")
         # Seconds alone: no step limit (a trainer's default budget_steps would be one).
         fields = {"budget_steps": budget.get("steps")}
         if "seconds" in budget:
@@ -368,17 +409,18 @@ def _budgets(value: Any, bad: Bad) -> dict[str, dict[str, Any]]:
 
 def _options(value: Any, trainers: list[str], algorithms: list[str], bad: Bad) -> dict[str, Any]:
     if not isinstance(value, dict):
-        raise bad(f"options {value!r} is not a table")
+        raise bad(f"options {_shown(value)} is not a table")
     for key, table in value.items():
         trainer, _, algorithm = key.partition("/")
         known = key == "all" or key in TRAINERS or key in ALGORITHMS
         known = known or (trainer in TRAINERS and algorithm in ALGORITHMS)
         if not known:
             raise bad(
-                f"options.{key}: not 'all', a trainer, an algorithm or a trainer/algorithm pair"
+                f"options.{key_shown(key)}: not 'all', a trainer, an algorithm or a"
+                " trainer/algorithm pair"
             )
         if not isinstance(table, dict):
-            raise bad(f"options.{key} {table!r} is not a table")
+            raise bad(f"options.{key} {_shown(table)} is not a table")
         for reserved in ("seed", "algo", "regime", "curator", "robot"):
             if reserved in table:
                 raise bad(f"options.{key} sets {reserved!r}, which the study's grid decides")
@@ -475,13 +517,13 @@ class _CuratorCheck:
         try:
             curator = make_curator(config.curator, context)
         except (ValueError, TypeError) as problem:
-            raise self.bad(f"run {run_id}: curator_options: {problem}") from None
+            raise self.bad(f"run {run_id}: curator_options: {_problem(problem)}") from None
         if advisor is not None:
             try:
                 make_advisor(advisor, config.advisor_context())
                 check_advice(curator, config.curator, advisor)
             except (ValueError, TypeError) as problem:
-                raise self.bad(f"run {run_id}: advisor: {problem}") from None
+                raise self.bad(f"run {run_id}: advisor: {_problem(problem)}") from None
         self.seen.add(key)
 
 
@@ -498,7 +540,7 @@ def _checked(run: PlannedRun, bad: Bad, curators: _CuratorCheck) -> PlannedRun:
 
             algorithm_class(run.algorithm).config_class.from_dict(checked.algorithm)
     except (ValueError, TypeError) as problem:
-        raise bad(f"run {run.id}: {problem}") from None
+        raise bad(f"run {run.id}: {_problem(problem)}") from None
     curators(run.id, checked)
     return PlannedRun(
         run.trainer, run.algorithm, run.budget, run.seed, checked.to_dict(), run.robot

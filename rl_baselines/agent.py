@@ -9,19 +9,24 @@ Files: ``save(path)`` writes SB3's zip at ``path`` (``.zip`` is appended when
 missing) and a JSON file beside it (same stem, ``.json``) with the robot string
 and the algorithm, which :meth:`SB3Agent.load` needs to rebuild the model.
 
-**Loading without unpickling** (:func:`load_sb3_model`, used by
+**Loading a file as data** (:func:`load_sb3_model`, used by
 :meth:`SB3Agent.load` and by the trainer's resume). SB3's zip holds a ``data``
-entry, a JSON object some of whose values are cloudpickled objects (a dict with
-a ``":serialized:"`` key: the policy class, the spaces, the schedules...), and
-``.pth`` entries of tensors. SB3's own ``load`` unpickles every such value, and
-unpickling runs whatever code the file says. Here none of them is unpickled:
-each is replaced (SB3's ``custom_objects``) by an object built from what we know
-(the robot's spaces and policy class, the constant schedules from the numbers
-stored beside the pickles, the classes of ``policy_kwargs`` from a fixed list)
-or the file is refused, naming the entry. The ``.pth`` entries are read with
-``torch.load(..., weights_only=True)`` (tensors and plain containers only),
-here before SB3 reads them the same way. The whole file is read once and SB3
-loads those same bytes. Any unreadable, malformed or inconsistent file raises
+entry, a JSON object of the model's attributes, some of them cloudpickled
+objects (a dict with a ``":serialized:"`` key: the policy class, the spaces,
+the schedules...), and ``.pth`` entries of tensors. SB3's own ``load``
+unpickles every such value (which runs whatever code the file says), copies
+every key onto the model, and hands a stored ``env`` string to ``gym.make``
+(which imports the module it names). Here SB3 reads no value of ``data``
+itself: every key must be one A2C or PPO writes (:data:`_DATA`), and each
+value is checked for its type and bounds, or rebuilt from what we know (the
+robot's spaces and policy class, the constant schedules from the numbers
+stored beside the pickles, the classes of ``policy_kwargs`` from a fixed
+list), and handed to SB3 as ``custom_objects``; any other key or entry
+refuses the file, naming it. Entry sizes, network sizes and the rollout's
+size are bounded before anything is inflated or built. The ``.pth`` entries
+are read with ``torch.load(..., weights_only=True)`` (tensors and plain
+containers only), here before SB3 reads them the same way. Any unreadable,
+malformed, hostile or inconsistent file raises
 :class:`~rl_baselines.RLConfigError` naming it.
 """
 
@@ -29,11 +34,8 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
-import re
-import zipfile
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -48,18 +50,25 @@ from stable_baselines3.common.utils import FloatSchedule
 from torch import nn
 
 from amaze.agents.robot import Robot, as_robot
+from amaze.archives import read_entry, zip_entries
 from amaze.envs.gym_env import action_space, observation_space
 from amaze.errors import AmazeError, one_line
 from rl_baselines import RLConfigError
 from rl_baselines.networks import SmallCNN
+from rl_baselines.sb3_file import (
+    MAX_TENSOR_FILE_BYTES,
+    METADATA_FORMAT,
+    REBUILD,
+    agent_paths,
+    checked_data,
+    read_metadata,
+    read_model_file,
+)
 
 __all__ = ["ALGORITHMS", "SB3Agent", "algorithm_class", "load_sb3_model"]
 
 #: The SB3 algorithms of the paper's RL baselines, by lowercase name.
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"a2c": A2C, "ppo": PPO}
-
-#: What :meth:`SB3Agent.save` writes in the JSON file beside the zip (``format``).
-METADATA_FORMAT = "sb3-zip"
 
 
 def algorithm_class(name: str) -> type[BaseAlgorithm]:
@@ -72,18 +81,11 @@ def algorithm_class(name: str) -> type[BaseAlgorithm]:
         ) from None
 
 
-def _paths(path: str | os.PathLike) -> tuple[Path, Path]:
-    zip_path = Path(path)
-    if zip_path.suffix != ".zip":
-        zip_path = zip_path.with_name(zip_path.name + ".zip")
-    return zip_path, zip_path.with_suffix(".json")
-
-
 # -----------------------------------------------------------------------------
-# The pickled values of SB3's ``data`` entry, rebuilt without unpickling
+# Building the model from the checked file
 
-#: The classes a ``policy_kwargs`` value may name (SB3 stores ``str(cls)`` beside
-#: the pickle): our CNN, SB3's extractors, torch's usual optimizers and activations.
+#: The classes a ``policy_kwargs`` value may name, by the name SB3 stores
+#: (:data:`rl_baselines.sb3_file.POLICY_KWARGS_CLASS_NAMES`).
 _POLICY_KWARGS_CLASSES: dict[str, type] = {
     str(cls): cls
     for cls in (
@@ -104,184 +106,61 @@ _POLICY_KWARGS_CLASSES: dict[str, type] = {
     )
 }
 
-#: SB3's description of a constant schedule (``FloatSchedule.value_schedule``).
-_CONSTANT_SCHEDULE = re.compile(r"ConstantSchedule\(val=([^()]*)\)")
-
-
-def _pickled(value: Any) -> bool:
-    """Whether SB3's ``load`` would unpickle this value of ``data`` (its own test)."""
-    return isinstance(value, dict) and ":serialized:" in value
-
-
-def _stored_number(data: Mapping[str, Any], key: str, source: str) -> float:
-    value = data.get(key)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise RLConfigError(f"{source}: {key} {value!r} in its data is not a finite number")
-    return float(value)
-
-
-def _lr_schedule(key: str, entry: dict, data: Mapping[str, Any], source: str) -> Any:
-    """SB3 rebuilds the schedule from ``learning_rate`` anyway: the same, from the number."""
-    return FloatSchedule(_stored_number(data, "learning_rate", source))
-
-
-def _clip_range(key: str, entry: dict, data: Mapping[str, Any], source: str) -> float:
-    """PPO's clip range: the constant of the ``ConstantSchedule`` described beside the pickle."""
-    description = entry.get("value_schedule")
-    match = _CONSTANT_SCHEDULE.fullmatch(description) if isinstance(description, str) else None
-    try:
-        value = float(match.group(1)) if match else math.nan
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise RLConfigError(
-            f"{source}: data entry {key!r} is not a constant schedule ({description!r});"
-            " it is refused rather than unpickled"
-        )
-    return value
-
-
-def _policy_kwargs(key: str, entry: dict, data: Mapping[str, Any], source: str) -> dict:
-    """The policy's keyword arguments from the JSON copy of their items SB3 stores.
-
-    JSON values are taken as they are; a value SB3 wrote as ``str(obj)`` must be
-    one of the classes of :data:`_POLICY_KWARGS_CLASSES`.
-    """
-    if entry.get(":type:") != str(dict):
-        raise RLConfigError(f"{source}: data entry {key!r} is not a dict ({entry.get(':type:')!r})")
-    kwargs: dict[str, Any] = {}
-    for name, value in entry.items():
-        if name in (":type:", ":serialized:"):
-            continue
-        if isinstance(value, str) and value.startswith("<"):
-            if value not in _POLICY_KWARGS_CLASSES:
-                raise RLConfigError(
-                    f"{source}: {key}[{name!r}] is {value}, not a class this loader rebuilds"
-                    " without unpickling"
-                )
-            value = _POLICY_KWARGS_CLASSES[value]
-        kwargs[name] = value
-    return kwargs
-
-
-def _nothing(key: str, entry: dict, data: Mapping[str, Any], source: str) -> None:
-    """Training state that SB3 rebuilds when it is missing (``learn`` resets the env)."""
-    return None
-
-
-def _rollout_buffer(key: str, entry: dict, data: Mapping[str, Any], source: str) -> type:
-    """The rollout buffer of Box observations (SB3's own choice for them)."""
-    return RolloutBuffer
-
-
-_Rebuild = Callable[[str, dict, Mapping[str, Any], str], Any]
-
-#: The pickled ``data`` values rebuilt without unpickling, for every algorithm...
-_REBUILT: dict[str, _Rebuild] = {
-    "policy_kwargs": _policy_kwargs,
-    "lr_schedule": _lr_schedule,
-    "rollout_buffer_class": _rollout_buffer,
-    "_last_obs": _nothing,
-    "_last_episode_starts": _nothing,
-    "_last_original_obs": _nothing,
-    "ep_info_buffer": _nothing,
-    "ep_success_buffer": _nothing,
-}
-#: ... and for one algorithm only.
-_REBUILT_BY_ALGORITHM: dict[str, dict[str, _Rebuild]] = {
-    "a2c": {},
-    "ppo": {"clip_range": _clip_range, "clip_range_vf": _clip_range},
-}
-
-
-def _stored_shape(entry: Any) -> tuple[int, ...] | None:
-    """The shape SB3 wrote beside a pickled space (``_shape``), if readable."""
-    shape = entry.get("_shape") if isinstance(entry, dict) else None
-    if isinstance(shape, list) and all(type(n) is int for n in shape):
-        return tuple(shape)
-    return None
-
 
 def _custom_objects(
     data: Mapping[str, Any], algo: str, robot: Robot, given: Mapping[str, Any], source: str
 ) -> dict[str, Any]:
-    """A replacement for every pickled value of ``data`` (SB3's ``custom_objects``).
+    """SB3's ``custom_objects`` for every key of ``data``: SB3 itself reads none of them.
 
-    The policy class and the spaces always come from the robot (whatever the
-    file holds); a value the caller passes in ``given`` (keyword arguments of
-    the load) replaces the stored one; the others are rebuilt by
-    :data:`_REBUILT`. Any other pickled value refuses the file.
+    The values are :func:`~rl_baselines.sb3_file.checked_data`'s; the policy
+    class and the spaces come from the robot, the schedule and the rollout
+    buffer from SB3's classes, and the classes of ``policy_kwargs`` from
+    :data:`_POLICY_KWARGS_CLASSES`.
     """
+    custom = checked_data(data, algo, robot, given, source)
     policy = "MlpPolicy" if robot.discrete_inputs else "CnnPolicy"
-    custom: dict[str, Any] = {
-        "policy_class": ALGORITHMS[algo].policy_aliases[policy],
-        "observation_space": observation_space(robot),
-        "action_space": action_space(robot),
-    }
-    for key in ("observation_space", "action_space"):
-        stored, expected = _stored_shape(data.get(key)), tuple(custom[key].shape)
-        if stored is not None and stored != expected:
-            raise RLConfigError(
-                f"{source}: its {key} has shape {stored}, robot {robot.to_string()}'s has"
-                f" {expected}: the model was trained for another robot"
-            )
-    stored = "ppo" if "clip_range" in data else "a2c"  # PPO's own hyperparameter
-    if stored != algo:
-        raise RLConfigError(f"{source} was saved by {stored.upper()}, not {algo.upper()}")
-    rebuilt = {**_REBUILT, **_REBUILT_BY_ALGORITHM[algo]}
-    for key, entry in data.items():
-        if key in custom or not _pickled(entry):
-            continue
-        if key in given:
-            custom[key] = given[key]
-        elif key in rebuilt:
-            custom[key] = rebuilt[key](key, entry, data, source)
-        else:
-            kind = entry.get(":type:")
-            raise RLConfigError(
-                f"{source}: data entry {key!r} is a pickled object ({kind}) that this loader"
-                f" does not rebuild for {algo}; the file is refused rather than unpickled"
-            )
+    custom["policy_class"] = ALGORITHMS[algo].policy_aliases[policy]
+    custom["observation_space"] = observation_space(robot)
+    custom["action_space"] = action_space(robot)
+    if custom.get("lr_schedule") == REBUILD:
+        custom["lr_schedule"] = FloatSchedule(custom["learning_rate"])
+    if custom.get("rollout_buffer_class") == REBUILD:
+        custom["rollout_buffer_class"] = RolloutBuffer
+    kwargs = custom.get("policy_kwargs")
+    if isinstance(kwargs, dict):
+        custom["policy_kwargs"] = {
+            name: _POLICY_KWARGS_CLASSES.get(value, value) if isinstance(value, str) else value
+            for name, value in kwargs.items()
+        }
     return custom
 
 
-def _read_model_file(path: Path, source: str) -> tuple[bytes, dict[str, Any]]:
-    """The file's bytes and its ``data`` object, every ``.pth`` entry checked weights-only."""
+def _check_tensor_entries(raw: bytes, source: str) -> None:
+    """Every ``.pth`` entry of the zip (sizes already bounded) holds plain tensors."""
+    with zip_entries(raw, source, RLConfigError) as archive:
+        for name in archive.namelist():
+            if name.endswith(".pth"):
+                _check_tensor_file(read_entry(archive, name, source, RLConfigError), name, source)
+
+
+def _check_tensor_file(content: bytes, name: str, source: str) -> None:
+    """A ``.pth`` entry (itself a zip) must hold plain tensors of bounded size."""
+    where = f"{source}: its entry {name!r}"
+    with zip_entries(
+        content,
+        where,
+        RLConfigError,
+        max_entry_bytes=MAX_TENSOR_FILE_BYTES,
+        max_total_bytes=MAX_TENSOR_FILE_BYTES,
+        kind="tensor file (.pth)",
+    ):
+        pass
     try:
-        raw = path.read_bytes()
-    except OSError as error:
-        raise RLConfigError(f"{source} cannot be read: {error.strerror or error}") from None
-    # The parsers (zipfile, json, torch, SB3) raise all kinds of errors on a malformed
-    # file: each one becomes an RLConfigError naming the file and what was read.
-    try:
-        archive = zipfile.ZipFile(io.BytesIO(raw))
+        torch.load(io.BytesIO(content), map_location="cpu", weights_only=True)
     except Exception as error:
-        raise RLConfigError(f"{source} is not a zip archive ({one_line(error)})") from None
-    with archive:
-        names = archive.namelist()
-        if "data" not in names:
-            raise RLConfigError(
-                f"{source} has no 'data' entry (it is truncated, or not a model saved by SB3)"
-            )
-        try:
-            data = json.loads(archive.read("data").decode("utf-8"))
-        except Exception as error:
-            raise RLConfigError(
-                f"{source}: its 'data' entry is not readable JSON ({one_line(error)})"
-            ) from None
-        if not isinstance(data, dict):
-            raise RLConfigError(f"{source}: its 'data' entry is not a JSON object")
-        for name in names:
-            if os.path.splitext(name)[1] != ".pth":
-                continue
-            try:
-                torch.load(io.BytesIO(archive.read(name)), map_location="cpu", weights_only=True)
-            except Exception as error:
-                raise RLConfigError(
-                    f"{source}: its entry {name!r} is not a tensor file readable without"
-                    f" unpickling objects ({one_line(error)})"
-                ) from None
-    return raw, data
+        raise RLConfigError(
+            f"{where} is not a tensor file readable without unpickling objects ({one_line(error)})"
+        ) from None
 
 
 def load_sb3_model(
@@ -320,8 +199,9 @@ def load_sb3_model(
     except AmazeError as error:
         raise RLConfigError(f"{source}: {error}") from None
     name = str(algo).lower()
-    raw, data = _read_model_file(path, source)
+    raw, data = read_model_file(path, source)
     custom = _custom_objects(data, name, robot, kwargs, source)
+    _check_tensor_entries(raw, source)
     try:
         return algo_class.load(
             io.BytesIO(raw), env=env, device=device, custom_objects=custom, **kwargs
@@ -335,47 +215,6 @@ def load_sb3_model(
 
 # -----------------------------------------------------------------------------
 # The agent
-
-
-def _read_metadata(zip_path: Path, json_path: Path) -> tuple[str, Robot]:
-    """The algorithm and the robot of the JSON file beside an agent's zip, checked."""
-    source = f"SB3 agent '{zip_path}'"
-    if not zip_path.is_file():
-        what = "is not a file" if zip_path.exists() else "does not exist"
-        raise RLConfigError(f"agent file '{zip_path}' {what}")
-    if not json_path.is_file():
-        raise RLConfigError(
-            f"{source}: its metadata file '{json_path}' does not exist"
-            " (SB3Agent.save writes it beside the zip, with the robot and the algorithm)"
-        )
-    try:
-        meta = json.loads(json_path.read_text(encoding="utf-8"))
-    except OSError as error:
-        raise RLConfigError(
-            f"{source}: its metadata file '{json_path}' cannot be read: {error.strerror or error}"
-        ) from None
-    except (ValueError, RecursionError) as error:  # JSON, UTF-8 and number errors
-        raise RLConfigError(
-            f"{source}: its metadata file '{json_path}' is not valid JSON ({one_line(error)})"
-        ) from None
-    if not isinstance(meta, dict):
-        raise RLConfigError(f"{source}: its metadata file '{json_path}' is not a JSON object")
-    fmt = meta.get("format", METADATA_FORMAT)
-    if fmt != METADATA_FORMAT:
-        raise RLConfigError(
-            f"{source}: metadata 'format' {fmt!r} is not {METADATA_FORMAT!r} ('{json_path}')"
-        )
-    algo = meta.get("algo")
-    if not isinstance(algo, str) or algo.lower() not in ALGORITHMS:
-        raise RLConfigError(
-            f"{source}: metadata 'algo' {algo!r} is not one of {', '.join(ALGORITHMS)}"
-            f" ('{json_path}')"
-        )
-    try:
-        robot = as_robot(meta.get("robot"))
-    except AmazeError as error:
-        raise RLConfigError(f"{source}: metadata 'robot': {error} ('{json_path}')") from None
-    return algo.lower(), robot
 
 
 class SB3Agent:
@@ -400,7 +239,7 @@ class SB3Agent:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the SB3 zip and its JSON metadata atomically; return the zip's path."""
-        zip_path, json_path = _paths(path)
+        zip_path, json_path = agent_paths(path)
         zip_path.parent.mkdir(parents=True, exist_ok=True)
         tmp_zip = zip_path.with_name(f".{zip_path.stem}.tmp.zip")
         self.model.save(tmp_zip)
@@ -417,6 +256,6 @@ class SB3Agent:
         A missing, unreadable or malformed zip or metadata file raises
         :class:`~rl_baselines.RLConfigError` naming it.
         """
-        zip_path, json_path = _paths(path)
-        algo, robot = _read_metadata(zip_path, json_path)
+        zip_path, json_path = agent_paths(path)
+        algo, robot = read_metadata(zip_path, json_path)
         return cls(load_sb3_model(zip_path, algo, robot, device=device), robot, algo)

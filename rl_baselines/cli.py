@@ -24,7 +24,7 @@ and exits with status 2.
 from __future__ import annotations
 
 from amaze.runs.command import TrainingCommand
-from rl_baselines.train import SB3Run
+from rl_baselines.config import TrainConfig
 
 __all__ = ["COMMAND", "entry_point", "main"]
 
@@ -32,7 +32,11 @@ COMMAND = TrainingCommand(
     prog="amaze-train",
     description="Train SB3 A2C/PPO agents on AMaze mazes.",
     module="rl_baselines.cli",
-    run_class=SB3Run,
+    # imported once the options and the config are checked: torch and SB3 load then
+    run_class="rl_baselines.train:SB3Run",
+    config_class=TrainConfig,
+    # a JAX run's saved trainers, checked before JAX or torch is imported
+    check_resume="rl_baselines.jax.storage:check_saved_trainers",
 )
 main = COMMAND.main
 entry_point = COMMAND.entry_point

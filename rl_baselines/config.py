@@ -32,7 +32,6 @@ the machine's speed, so it neither replays nor resumes bit-identically.
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -45,7 +44,7 @@ from amaze.runs.config import option
 from amaze.runs.regime import RegimeConfig
 from amaze.validation import check_integer, check_number
 from rl_baselines import RLConfigError
-from rl_baselines.agent import algorithm_class
+from rl_baselines.jax.hyperparameters import SB3_DEFAULTS
 
 __all__ = [
     "FRAMEWORKS",
@@ -112,7 +111,10 @@ class TrainConfig(RegimeConfig):
 
     def validate(self) -> TrainConfig:
         """Check every field; raise :class:`RLConfigError` naming the bad value."""
-        algorithm_class(self.algo)
+        if not isinstance(self.algo, str) or self.algo.lower() not in SB3_DEFAULTS:
+            raise RLConfigError(
+                f"unknown algorithm {self.algo!r} (choose from {', '.join(SB3_DEFAULTS)})"
+            )
         self.algo = self.algo.lower()
         self._check_envs()  # before the regime's checks: a coevolution batch follows from n_envs
         super().validate()
@@ -277,9 +279,13 @@ _POSITIVE = frozenset({"n_steps", "batch_size", "n_epochs"})
 
 
 def sb3_defaults(algo: str) -> dict[str, Any]:
-    """The keyword arguments of the SB3 algorithm and their defaults."""
-    signature = inspect.signature(algorithm_class(algo).__init__)
-    return {name: parameter.default for name, parameter in signature.parameters.items()}
+    """The keyword arguments of the SB3 algorithm that a config may set, and their defaults.
+
+    SB3's own (:data:`rl_baselines.jax.hyperparameters.SB3_DEFAULTS`, checked
+    against SB3's signatures by a test), written out so that reading and
+    checking a config imports neither torch nor SB3.
+    """
+    return dict(SB3_DEFAULTS[algo])
 
 
 def check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:

@@ -67,6 +67,11 @@ def edit_json(**changes: object) -> Callable[[Path], None]:
     return edit
 
 
+def edit_sb3_data(**changes: object) -> Callable[[Path], None]:
+    """Damage: an SB3 zip whose ``data`` entry has ``changes`` (other entries kept)."""
+    return lambda path: load_tool("hostile_files").edit_sb3_data(path, **changes)
+
+
 def refused_resume(
     main: Callable[[list[str]], int],
     finished_run: Path,

@@ -48,3 +48,21 @@ def test_no_file_of_a_run_folder_runs_code_as_a_controller(trainer: str, tmp_pat
     )
     assert not report.failures, report.failures
     assert report.counts["refused"] == sum(report.counts.values())
+
+
+@pytest.mark.parametrize(
+    ("trainer", "kind"),
+    [
+        ("train-edhucat", "sb3-env-module"),
+        ("train-coevolution", "sb3-env-module"),
+        ("evolve-coevolution", "npz-huge-array"),
+        ("train", "zip-declared-gigabytes"),
+    ],
+)
+def test_every_file_of_a_run_folder_edited_to_attack_its_reader_is_refused(
+    trainer: str, kind: str, tmp_path: Path
+) -> None:
+    """Each file of the folder in turn, edited as ``kind`` says (files of other kinds kept)."""
+    report = fuzz_resume.fuzz(trainer, None, kind=kind, scratch=tmp_path)
+    assert not report.failures, report.failures
+    assert report.counts["refused"] >= 1

@@ -22,7 +22,9 @@ with ``--hostile`` (half of the tries otherwise), content written to attack
 the reader: pickles whose loading would create a marker file (the payload that
 once ran through a restricted unpickler, a ``__reduce__`` calling
 ``os.system``), a ``.npz`` whose array is such a pickle, JSON nested 100,000
-deep, JSON with NaN, infinities and a 5,000-digit number. A try ends as
+deep, JSON with NaN, infinities and a 5,000-digit number, an SB3 zip whose
+``data`` names a module that creates the marker on import, an ``.npz`` whose
+array declares a terabyte, a zip whose entry declares 4 GiB. A try ends as
 ``ok`` (exit 0: the damage was harmless), ``refused`` (exit 2 with exactly one
 ``error:`` line: the contract) or as a failure: a traceback, any other exit,
 or a marker file created (code ran). Failures are printed; the script exits
@@ -38,9 +40,11 @@ import json
 import pickle
 import random
 import shutil
+import struct
 import sys
 import tempfile
 import time
+import zipfile
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -173,16 +177,77 @@ def _object_npz(marker: Path) -> bytes:
     return buffer.getvalue()
 
 
-#: Hostile contents, each made for a marker file that exists only if code ran.
-HOSTILE: dict[str, Callable[[Path], bytes]] = {
-    "pickle-generator-ctor": generator_ctor_payload,
-    "pickle-reduce": lambda marker: pickle.dumps(_Reduce(f"touch {marker}")),
-    "npz-object-array": _object_npz,
-    "json-nested": lambda marker: b"[" * 100_000,
-    "json-non-finite": lambda marker: json.dumps(
+def _zip_entries(original: bytes) -> dict[str, bytes] | None:
+    """The entries of ``original`` if it is a readable zip archive."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(original)) as archive:
+            return {name: archive.read(name) for name in archive.namelist()}
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError):
+        return None
+
+
+def _zipped(entries: dict[str, bytes]) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for name, content in entries.items():
+            archive.writestr(name, content)
+    return buffer.getvalue()
+
+
+def _sb3_env_module(marker: Path, original: bytes) -> bytes:
+    """An SB3 zip whose ``data`` names a module (``env``) that creates the marker on import.
+
+    SB3's own ``load`` hands a stored ``env`` string to ``gym.make``, which
+    imports the module before the colon. Other files are left as they are.
+    """
+    entries = _zip_entries(original)
+    if entries is None or "data" not in entries:
+        return original
+    module = f"amaze_fuzz_{marker.name.replace('-', '_')}"
+    (marker.parent / f"{module}.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    data = json.loads(entries["data"])
+    data["env"] = f"{module}:AMaze-v0"
+    entries["data"] = json.dumps(data).encode()
+    return _zipped(entries)
+
+
+def _npz_huge_array(marker: Path, original: bytes) -> bytes:
+    """An archive whose first ``.npy`` entry declares a terabyte of floats (no data)."""
+    entries = _zip_entries(original)
+    arrays = [name for name in entries or {} if name.endswith(".npy")]
+    if not arrays:
+        return original
+    text = "{'descr': '<f8', 'fortran_order': False, 'shape': (137438953472,), }"
+    text += " " * (63 - (10 + len(text)) % 64) + "\n"
+    entries[arrays[0]] = b"\x93NUMPY\x01\x00" + struct.pack("<H", len(text)) + text.encode()
+    return _zipped(entries)
+
+
+def _zip_declared_gigabytes(marker: Path, original: bytes) -> bytes:
+    """A zip whose first entry declares 4 GiB - 1 once inflated (its data unchanged)."""
+    if _zip_entries(original) is None or b"PK\x01\x02" not in original:
+        return original
+    content = bytearray(original)
+    at = content.index(b"PK\x01\x02")
+    content[at + 24 : at + 28] = struct.pack("<I", 0xFFFFFFFE)
+    return bytes(content)
+
+
+#: Hostile contents ``make(marker, original)``, each made for a marker file that
+#: exists only if code ran; the last three edit the file they replace (an SB3
+#: zip, an ``.npz``, any zip) and leave other files as they are.
+HOSTILE: dict[str, Callable[[Path, bytes], bytes]] = {
+    "pickle-generator-ctor": lambda marker, original: generator_ctor_payload(marker),
+    "pickle-reduce": lambda marker, original: pickle.dumps(_Reduce(f"touch {marker}")),
+    "npz-object-array": lambda marker, original: _object_npz(marker),
+    "json-nested": lambda marker, original: b"[" * 100_000,
+    "json-non-finite": lambda marker, original: json.dumps(
         {"env_steps": float("nan"), "seconds": float("inf"), "stage": -float("inf")}
     ).encode(),
-    "json-huge-number": lambda marker: b'{"env_steps": ' + b"9" * 5000 + b"}",
+    "json-huge-number": lambda marker, original: b'{"env_steps": ' + b"9" * 5000 + b"}",
+    "sb3-env-module": _sb3_env_module,
+    "npz-huge-array": _npz_huge_array,
+    "zip-declared-gigabytes": _zip_declared_gigabytes,
 }
 
 
@@ -270,11 +335,15 @@ def fuzz(
             marker = scratch / f"marker-{index}"
             if kind is not None or hostile or rng.random() < 0.5:
                 used = kind or rng.choice(sorted(HOSTILE))
-                content = HOSTILE[used](marker)
+                content = HOSTILE[used](marker, (out / name).read_bytes())
             else:
                 used, content = damage(bytearray((out / name).read_bytes()), rng)
             (out / name).write_bytes(content)
-            code, lines = _run(command, _argv(mode, out, scratch / f"replayed-{index}", name))
+            sys.path.insert(0, str(scratch))  # where the module of "sb3-env-module" lies
+            try:
+                code, lines = _run(command, _argv(mode, out, scratch / f"replayed-{index}", name))
+            finally:
+                sys.path.remove(str(scratch))
             time.sleep(0.05)  # a payload that started a process: let it touch its marker
             outcome = _outcome(code, lines, marker)
             report.counts[outcome] += 1

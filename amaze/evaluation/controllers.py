@@ -463,7 +463,7 @@ def train_tabular(
 
 
 #: Entry-point group through which other packages load their saved agents by
-#: file suffix (``zip = rl_baselines.agent:SB3Agent.load``), so that the command
+#: file suffix (``zip = rl_baselines.agent_loader:load_agent``), so that the command
 #: line runs them without ``amaze`` importing those packages.
 AGENT_LOADERS = "amaze.agent_loaders"
 

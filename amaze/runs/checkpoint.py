@@ -6,7 +6,8 @@ few libraries. :func:`write_checkpoint` writes it as one ``.npz`` archive
 (numpy's zip of ``.npy`` arrays, written atomically): the entry ``state`` holds
 a JSON document describing the graph, and every numpy array of the graph is an
 entry of its own. :func:`read_checkpoint` reads it back with
-``numpy.load(..., allow_pickle=False)`` and :func:`json.loads`; nothing in the
+:func:`amaze.archives.open_npz` (every declared size bounded before it is
+inflated) and :func:`json.loads`; nothing in the
 file is ever unpickled, imported or called.
 
 The document is plain JSON (numbers, strings, lists, objects) with a few
@@ -57,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+from amaze.archives import open_npz
 from amaze.runs.folder import write_bytes
 from amaze.runs.state_document import (
     ArrayLookup,
@@ -146,11 +148,11 @@ def read_checkpoint(
     if not head.startswith(b"PK\x03\x04"):
         raise error(f"{where} is not an amaze checkpoint (not a zip archive)")
     try:
-        with np.load(path, allow_pickle=False) as archive:
+        with open_npz(path, where, error) as archive:
             document = parse_json(
-                archive["state"].tobytes(), where, error=error, max_depth=MAX_DOCUMENT_DEPTH
+                archive.read("state").tobytes(), where, error=error, max_depth=MAX_DOCUMENT_DEPTH
             )
-            arrays = ArrayLookup(archive, len(archive.files))
+            arrays = ArrayLookup(archive, len(archive.names))
             if not (isinstance(document, dict) and document.get("format") == FORMAT):
                 raise error(f"{where} is not an amaze checkpoint")
             if document.get("version") != VERSION:

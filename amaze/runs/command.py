@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import os
 import platform
 import signal
@@ -35,6 +36,7 @@ from typing import NoReturn
 from amaze import __version__
 from amaze.errors import AmazeError, UsageError, one_line
 from amaze.runs.cluster import add_backend_arguments, check_backend
+from amaze.runs.config import RunConfig
 from amaze.runs.lifecycle import Run, RunResult
 from amaze.runs.replicates import replicate_command
 
@@ -119,24 +121,47 @@ class TrainingCommand:
     ``add_arguments`` (its own options) and ``run_context`` (the context its
     runs go in, made from the parsed options); without them a single run with
     ``--backend ray`` is refused, as it would have nothing to distribute.
+
+    ``run_class`` may be given as ``"module:Class"`` with its ``config_class``:
+    the module (and whatever heavy library it loads, such as torch) is then
+    imported only once the options and the config file have been checked, so
+    that bad input is refused at the cost of the command's start alone.
     """
 
     prog: str
     description: str
     #: The module run as ``python -m module`` by each replicate.
     module: str
-    run_class: type[Run]
+    run_class: type[Run] | str
     #: Adds the trainer's own run options to the parser's "run" group.
     add_arguments: Callable[[argparse._ArgumentGroup], None] | None = None
     #: The context a single run goes in (from the parsed options), e.g. its evaluation backend.
     run_context: Callable[[argparse.Namespace], AbstractContextManager[object]] | None = None
+    #: The run class's config class (needed when ``run_class`` is a ``"module:Class"`` name).
+    config_class: type[RunConfig] | None = None
+    #: ``"module:function"`` checking a ``--resume`` folder before the run class is
+    #: imported (files whose checks need none of its libraries).
+    check_resume: str | None = None
+
+    def trainer(self) -> type[Run]:
+        """The run class, imported now if it was given by name."""
+        if not isinstance(self.run_class, str):
+            return self.run_class
+        module, _, name = self.run_class.partition(":")
+        return getattr(importlib.import_module(module), name)
+
+    def config(self) -> type[RunConfig]:
+        """The run's config class (without importing a run class given by name)."""
+        if self.config_class is not None:
+            return self.config_class
+        return self.trainer().config_class
 
     def parser(self) -> CommandParser:
         """The command's parser: the config's fields, then the run options."""
         parser = CommandParser(prog=self.prog, description=self.description, version=True)
         config = parser.add_argument_group("run config (config.json keys)")
-        self.run_class.config_class.add_arguments(config)
-        options = self.run_class.config_class.options_field
+        self.config().add_arguments(config)
+        options = self.config().options_field
         run = parser.add_argument_group("run")
         run.add_argument(
             "--config",
@@ -239,7 +264,7 @@ class TrainingCommand:
 
     def _refuse_with(self, args: argparse.Namespace, mode: str, why: str) -> None:
         """Refuse the options that ``mode`` (``--resume``, ``--replay``) would ignore."""
-        config_class = self.run_class.config_class
+        config_class = self.config()
         given = [
             "--" + f.name.replace("_", "-")
             for f in config_class.command_line_fields()
@@ -256,17 +281,19 @@ class TrainingCommand:
     def _one_run(self, args: argparse.Namespace, progress: bool) -> RunResult:
         if args.resume:
             self._refuse_with(args, "--resume", "continues the run as its config.json says")
-            return self.run_class.resume(args.resume, progress=progress)
+            if self.check_resume is not None:
+                module, _, name = self.check_resume.partition(":")
+                getattr(importlib.import_module(module), name)(args.resume)
+            return self.trainer().resume(args.resume, progress=progress)
         if args.replay:
             self._refuse_with(args, "--replay", "reruns the replayed run's config.json")
             if not args.out:
                 raise UsageError("--replay needs --out, the folder of the new run")
-            return self.run_class.replay(args.replay, args.out, progress=progress)
+            return self.trainer().replay(args.replay, args.out, progress=progress)
         if not args.out:
             raise UsageError("--out is required (or --resume DIR)")
-        config_class = self.run_class.config_class
-        data = config_class.from_file_and_arguments(args, args.config)
-        return self.run_class.fresh(data, args.out, progress=progress)
+        data = self.config().from_file_and_arguments(args, args.config)
+        return self.trainer().fresh(data, args.out, progress=progress)
 
     def entry_point(self) -> NoReturn:
         """Console-script entry point."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import types
 import typing
 from collections.abc import Mapping
@@ -31,7 +32,9 @@ from amaze.errors import AmazeError, one_line
 from amaze.validation import MAX_JSON_DEPTH, check_integer, nests_within, parse_json
 
 __all__ = [
+    "MAX_CONFIG_BYTES",
     "MAX_SEED",
+    "MAX_YAML_NODES",
     "RunConfig",
     "config_from_dict",
     "option",
@@ -41,6 +44,14 @@ __all__ = [
 
 #: The largest seed of a run: numpy's and SB3's global seeding take 32-bit seeds.
 MAX_SEED = 2**32 - 1
+#: The largest config file (JSON or YAML) read: the project's are a few KiB.
+MAX_CONFIG_BYTES = 16 * 2**20
+#: The most nodes (scalars, lists, mappings) a YAML config may hold once its
+#: aliases are expanded: ten nested lists of ten aliases make a few hundred
+#: bytes that would expand to billions (the "billion laughs"). The project's
+#: configs hold a few hundred; yaml's pure-Python loader spends about 15 us and
+#: 700 bytes on a node, so a file is refused within about 1.5 s and 100 MB.
+MAX_YAML_NODES = 100_000
 
 _Config = TypeVar("_Config")
 _RunConfig = TypeVar("_RunConfig", bound="RunConfig")
@@ -93,52 +104,126 @@ def config_from_dict(
     return cls(**dict(data))
 
 
-def read_json_object(path: str | Path, error: type[ValueError], what: str = "config file") -> dict:
-    """The JSON object in the file ``path``; raise ``error`` naming the file otherwise."""
-    where = f"{what} {str(path)!r}"
+def _read_capped(path: Path, where: str, error: type[ValueError]) -> bytes:
+    """The bytes of the file ``path``, refused (``error`` naming ``where``) past
+    :data:`MAX_CONFIG_BYTES` before it is read whole."""
     try:
-        data = Path(path).read_bytes()
+        with open(path, "rb") as stream:
+            size = os.fstat(stream.fileno()).st_size
+            data = b"" if size > MAX_CONFIG_BYTES else stream.read(MAX_CONFIG_BYTES + 1)
     except FileNotFoundError:
         raise error(f"{where} does not exist") from None
     except IsADirectoryError:
         raise error(f"{where} is a directory") from None
     except OSError as problem:
         raise error(f"{where} cannot be read: {problem.strerror or problem}") from None
-    loaded = parse_json(data, where, error=error)
+    if max(size, len(data)) > MAX_CONFIG_BYTES:
+        amount = f"{size:,}" if size > MAX_CONFIG_BYTES else f"more than {MAX_CONFIG_BYTES:,}"
+        raise error(f"{where} is too large: {amount} bytes, at most {MAX_CONFIG_BYTES:,} are read")
+    return data
+
+
+def read_json_object(path: str | Path, error: type[ValueError], what: str = "config file") -> dict:
+    """The JSON object in the file ``path``; raise ``error`` naming the file otherwise.
+
+    A file over :data:`MAX_CONFIG_BYTES` is refused before it is read.
+    """
+    where = f"{what} {str(path)!r}"
+    loaded = parse_json(_read_capped(Path(path), where, error), where, error=error)
     if not isinstance(loaded, dict):
         raise error(f"{where} does not hold a JSON object")
     return loaded
 
 
+def _expanded_nodes(root: Any, budget: int) -> int:
+    """The nodes of the YAML node graph ``root`` once its aliases are expanded,
+    or ``budget + 1`` as soon as they are more than ``budget`` (a cycle is).
+
+    Each node's count is memoised (by id), so shared nodes cost one visit;
+    walked without recursion.
+    """
+    counts: dict[int, int] = {}
+    open_nodes: set[int] = set()
+    stack: list[tuple[Any, bool]] = [(root, False)]
+    while stack:
+        node, finished = stack.pop()
+        if isinstance(node.value, list):  # a sequence's nodes, a mapping's (key, value) pairs
+            children = [
+                c for item in node.value for c in (item if isinstance(item, tuple) else (item,))
+            ]
+        else:
+            children = []
+        if finished:
+            count = 1 + sum(counts[id(child)] for child in children)
+            if count > budget:
+                return budget + 1
+            counts[id(node)] = count
+            open_nodes.discard(id(node))
+        elif id(node) in open_nodes:  # an alias inside its own anchor: infinite
+            return budget + 1
+        elif id(node) not in counts:
+            open_nodes.add(id(node))
+            stack.append((node, True))
+            stack.extend((child, False) for child in children if id(child) not in counts)
+    return counts[id(root)]
+
+
+def _load_yaml(text: str, where: str, error: type[ValueError]) -> Any:
+    """The value of the YAML document ``text`` (``yaml``'s safe constructors), aliases
+    expanded under :data:`MAX_YAML_NODES`; ``error`` naming ``where`` otherwise."""
+    import yaml
+
+    class BudgetLoader(yaml.SafeLoader):
+        """A safe loader that stops composing past the budget of nodes."""
+
+        composed = 0
+
+        def compose_node(self, parent: Any, index: Any) -> Any:
+            self.composed += 1
+            if self.composed > MAX_YAML_NODES:
+                raise error(f"{where} holds more than {MAX_YAML_NODES:,} YAML nodes")
+            return super().compose_node(parent, index)
+
+    loader = None
+    try:
+        loader = BudgetLoader(text)
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        if _expanded_nodes(node, MAX_YAML_NODES) > MAX_YAML_NODES:
+            raise error(
+                f"{where} holds more than {MAX_YAML_NODES:,} YAML nodes once its aliases"
+                " are expanded"
+            )
+        return loader.construct_document(node)
+    except yaml.YAMLError as problem:
+        raise error(f"{where} is not YAML: {one_line(problem)}") from None
+    except RecursionError:
+        raise error(f"{where} nests lists or mappings more than {MAX_JSON_DEPTH} deep") from None
+    finally:
+        if loader is not None:
+            loader.dispose()
+
+
 def read_config_file(path: str | Path, error: type[ValueError]) -> dict:
     """A ``--config`` file's object: YAML for ``.yml``/``.yaml``, JSON otherwise.
 
-    YAML is read with ``yaml.safe_load`` (plain data: no tag can build an
-    object or run code) and held to the rules of JSON: nesting at most
-    :data:`~amaze.validation.MAX_JSON_DEPTH` deep, and an object at the top.
+    A file over :data:`MAX_CONFIG_BYTES` is refused before it is read. YAML
+    is read with ``yaml``'s safe loader (plain data: no tag can build an
+    object or run code), its aliases expanded only if the document then
+    holds at most :data:`MAX_YAML_NODES` nodes, and held to the rules of
+    JSON: nesting at most :data:`~amaze.validation.MAX_JSON_DEPTH` deep, and
+    an object at the top.
     """
     path = Path(path)
     if path.suffix.lower() not in (".yml", ".yaml"):
         return read_json_object(path, error)
-    import yaml
-
     where = f"config file {str(path)!r}"
     try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise error(f"{where} does not exist") from None
-    except IsADirectoryError:
-        raise error(f"{where} is a directory") from None
+        text = _read_capped(path, where, error).decode("utf-8")
     except UnicodeDecodeError:
         raise error(f"{where} is not UTF-8 text") from None
-    except OSError as problem:
-        raise error(f"{where} cannot be read: {problem.strerror or problem}") from None
-    try:
-        loaded = yaml.safe_load(text)
-    except yaml.YAMLError as problem:
-        raise error(f"{where} is not YAML: {one_line(problem)}") from None
-    except RecursionError:
-        loaded = [[]] * MAX_JSON_DEPTH
+    loaded = _load_yaml(text, where, error)
     if not nests_within(loaded, MAX_JSON_DEPTH):
         raise error(f"{where} nests lists or mappings more than {MAX_JSON_DEPTH} deep")
     if not isinstance(loaded, dict):

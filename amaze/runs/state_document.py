@@ -493,7 +493,12 @@ def _restore(value: Any, state: Any, name: str) -> None:
 
 
 class ArrayLookup:
-    """The archive's array ``a<i>``, read once, of an allowed dtype."""
+    """The archive's array ``a<i>``, read once, of an allowed dtype.
+
+    ``archive`` is an :class:`amaze.archives.NpzArchive`: each header is
+    checked before the array is inflated, and arrays of Python objects are
+    refused there.
+    """
 
     def __init__(self, archive: Any, size: int) -> None:
         self.archive = archive
@@ -502,13 +507,6 @@ class ArrayLookup:
     def __call__(self, index: Any) -> np.ndarray:
         if type(index) is not int or not 0 <= index < self.size:
             raise Refused(f"refers to the array {index!r}, which it does not hold")
-        try:
-            array = self.archive[f"a{index}"]
-        except ValueError as problem:
-            if "allow_pickle" in str(problem):
-                raise Refused(
-                    f"holds the array a{index}, which numpy reads by unpickling"
-                ) from None
-            raise
+        array = self.archive.read(f"a{index}")
         _checked_dtype(array.dtype, "the checkpoint", Refused)
         return array

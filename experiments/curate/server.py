@@ -25,8 +25,10 @@ body of at most :data:`MAX_BODY` bytes. ``/files/`` serves nothing outside
 the run folder (404), and bad input gets a 4xx answer naming the problem,
 never a 500: tokens of any text compare (as bytes), bodies are read by
 :func:`amaze.validation.parse_json` (UTF-8, nesting bounded), numbers must be
-finite, file names too long or looping links are 404s, and a branch whose
-agent cannot be read is a 409 naming the file.
+finite, strings must be Unicode text (a lone surrogate, ``"\\ud800"``, is a
+400), file names too long or looping links are 404s, and a branch whose
+agent cannot be read is a 409 naming the file. Every error message is made
+encodable (:func:`_clipped`), whatever text of the request it quotes.
 """
 
 from __future__ import annotations
@@ -123,7 +125,12 @@ def _body_length(header: str | None) -> int | None:
 
 
 def _clipped(message: str) -> str:
-    """``message`` cut to :data:`MAX_MESSAGE` characters (an answer stays short)."""
+    """``message`` cut to :data:`MAX_MESSAGE` characters and made encodable as UTF-8.
+
+    Messages quote what a request sent: a lone surrogate (``"\\ud800"`` in a
+    JSON body) is written as its escape, ``\\ud800``, so the answer encodes.
+    """
+    message = message.encode("utf-8", "backslashreplace").decode("utf-8")
     return message if len(message) <= MAX_MESSAGE else message[: MAX_MESSAGE - 3] + "..."
 
 
@@ -133,8 +140,33 @@ def _problem(status: int, message: str, details: Any = None) -> JSONResponse:
     if isinstance(details, list):
         body["details"] = [d if d is None else _clipped(str(d)) for d in details]
     elif details is not None:
-        body["details"] = details
+        body["details"] = _clipped(str(details))
     return JSONResponse(body, status_code=status)
+
+
+def _not_unicode(value: Any) -> str | None:
+    """Where parsed JSON holds a string (a key or a value) that is not Unicode text, else None.
+
+    JSON's ``\\ud800`` escape gives a lone surrogate, which no encoding
+    writes. Walked without recursion; the answer names the string and the
+    surrogate's place, the text around it escaped with :func:`ascii`
+    (``"string 'M4_\\ud800' (character 3)"``).
+    """
+    stack = [(value, "string")]
+    while stack:
+        item, kind = stack.pop()
+        if isinstance(item, dict):
+            stack.extend((key, "key") for key in item)
+            stack.extend((child, "string") for child in item.values())
+        elif isinstance(item, list):
+            stack.extend((child, "string") for child in item)
+        elif isinstance(item, str):
+            try:
+                item.encode("utf-8")
+            except UnicodeEncodeError as problem:
+                at = problem.start
+                return f"{kind} {item[max(0, at - 20) : at + 20]!a} (character {at})"
+    return None
 
 
 class _Pictures:
@@ -297,6 +329,7 @@ async def _json_body(request: Request) -> dict[str, Any]:
     """A post's body: a JSON object of at most :data:`MAX_BODY` bytes, else an :class:`AnswerError`.
 
     The guard checked the ``Content-Length`` header; this checks what came.
+    Every string in it, keys included, must be Unicode text (no lone surrogate).
     """
     body = await request.body()
     if len(body) > MAX_BODY:  # the guard checked the header; this is what came
@@ -304,6 +337,9 @@ async def _json_body(request: Request) -> dict[str, Any]:
     data = parse_json(body, "the request body", error=AnswerError)
     if not isinstance(data, dict):
         raise AnswerError("the request body is not a JSON object")
+    bad = _not_unicode(data)
+    if bad is not None:
+        raise AnswerError(f"the request body's {bad} holds a lone surrogate, which is not text")
     return data
 
 

@@ -15,7 +15,12 @@ naming it, never silently ignored:
 * ``policy_kwargs`` may hold ``net_arch`` (a list, or ``dict(pi=..., vf=...)``),
   ``features_extractor_kwargs={"features_dim": n}`` for hybrid robots, and
   SB3's defaults of ``ortho_init``, ``share_features_extractor``,
-  ``normalize_images`` and ``activation_fn`` (Tanh); nothing else.
+  ``normalize_images`` and ``activation_fn`` (Tanh); nothing else;
+* sizes are bounded before anything is allocated: layers by
+  :func:`~amaze.validation.check_layer_widths`, ``features_dim`` by
+  :data:`~amaze.validation.MAX_LAYER_WIDTH`, a rollout (``n_steps * n_envs``,
+  and ``batch_size``) by :data:`MAX_ROLLOUT_SIZE`, an update's epochs by
+  :data:`MAX_EPOCH_SAMPLES`.
 
 SB3's defaults are written here (:data:`SB3_DEFAULTS`) so that the trainer
 imports neither torch nor SB3; a test checks them against SB3's signatures.
@@ -27,10 +32,38 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from amaze.validation import check_integer, check_number
+from amaze.validation import (
+    MAX_LAYER_WIDTH,
+    MAX_ROLLOUT_SAMPLES,
+    check_integer,
+    check_layer_widths,
+    check_number,
+)
 from rl_baselines import RLConfigError
 
-__all__ = ["SB3_DEFAULTS", "Hyperparameters", "checked_hyperparameters"]
+__all__ = [
+    "MAX_CHUNK_STEPS",
+    "MAX_EPOCH_SAMPLES",
+    "MAX_ROLLOUT_SIZE",
+    "SB3_DEFAULTS",
+    "Hyperparameters",
+    "checked_hyperparameters",
+]
+
+#: The most samples (``n_steps * n_envs``) one rollout may hold, and the largest
+#: ``batch_size`` (:data:`amaze.validation.MAX_ROLLOUT_SAMPLES`, shared with SB3
+#: files): the rollout is allocated whole on the device. An observation is 8
+#: float32s for DD, 15 x 15 bytes for H15 (about 17 GiB at the widest vision, 65).
+MAX_ROLLOUT_SIZE = MAX_ROLLOUT_SAMPLES
+#: The most samples the epochs of one PPO update go through (``n_epochs * n_steps
+#: * n_envs``): the update draws them at once as int32 permutations (1 GiB at most).
+MAX_EPOCH_SAMPLES = 2**28
+#: The largest ``chunk_steps``: a call returns figures of every rollout it plays,
+#: allocated up front (52 bytes per env step when rollouts are one step of one
+#: env: 832 MiB here, 104 GiB at 2**31), and it must hold one rollout of the largest size
+#: (:data:`~rl_baselines.jax.hyperparameters.MAX_ROLLOUT_SIZE`, which a saved
+#: trainer records as its ``chunk_steps`` when a rollout is larger than a chunk).
+MAX_CHUNK_STEPS = 2**24
 
 _COMMON: dict[str, Any] = {
     "gamma": 0.99,
@@ -140,13 +173,8 @@ class Hyperparameters:
 
 
 def _layers(name: str, value: Any) -> tuple[int, ...]:
-    """A list of positive layer widths (``net_arch``)."""
-    if not isinstance(value, list | tuple):
-        raise RLConfigError(f"policy_kwargs {name} {value!r} is not a list of layer widths")
-    return tuple(
-        check_integer(f"policy_kwargs {name} layer", v, minimum=1, error=RLConfigError)
-        for v in value
-    )
+    """A list of layer widths (``net_arch``), bounded by :func:`check_layer_widths`."""
+    return check_layer_widths(f"policy_kwargs {name}", value, error=RLConfigError)
 
 
 def _net_arch(value: Any) -> tuple[tuple[int, ...], tuple[int, ...]]:
@@ -183,6 +211,7 @@ def _policy_kwargs(value: Any, image: bool) -> tuple[tuple[int, ...], tuple[int,
                 "policy_kwargs features_dim",
                 item.get("features_dim", 64),
                 minimum=1,
+                maximum=MAX_LAYER_WIDTH,
                 error=RLConfigError,
             )
         elif name in _POLICY_DEFAULTS and item is _POLICY_DEFAULTS[name]:
@@ -251,10 +280,21 @@ def checked_hyperparameters(
         if given[key] != defaults[key] and not (key.endswith("kwargs") and given[key] == {}):
             raise RLConfigError(f"hyperparameter {key!r} = {given[key]!r} is refused: {why}")
     check_integer("hyperparameter 'sde_sample_freq'", given["sde_sample_freq"], error=RLConfigError)
-    n_envs = check_integer("n_envs", n_envs, minimum=1, error=RLConfigError)
-    n_steps = check_integer(
-        "hyperparameter 'n_steps'", given["n_steps"], minimum=1, error=RLConfigError
+    n_envs = check_integer(
+        "n_envs", n_envs, minimum=1, maximum=MAX_ROLLOUT_SIZE, error=RLConfigError
     )
+    n_steps = check_integer(
+        "hyperparameter 'n_steps'",
+        given["n_steps"],
+        minimum=1,
+        maximum=MAX_ROLLOUT_SIZE,
+        error=RLConfigError,
+    )
+    if n_steps * n_envs > MAX_ROLLOUT_SIZE:
+        raise RLConfigError(
+            f"n_steps * n_envs = {n_steps} * {n_envs} = {n_steps * n_envs:,} samples a rollout,"
+            f" more than {MAX_ROLLOUT_SIZE:,}"
+        )
     net_pi, net_vf, features_dim = _policy_kwargs(given["policy_kwargs"], robot_images)
     ppo = name == "ppo"
     normalize = _bool("normalize_advantage", given["normalize_advantage"])
@@ -262,11 +302,20 @@ def checked_hyperparameters(
     n_epochs = 1
     if ppo:
         batch_size = check_integer(
-            "hyperparameter 'batch_size'", given["batch_size"], minimum=1, error=RLConfigError
+            "hyperparameter 'batch_size'",
+            given["batch_size"],
+            minimum=1,
+            maximum=MAX_ROLLOUT_SIZE,
+            error=RLConfigError,
         )
         n_epochs = check_integer(
             "hyperparameter 'n_epochs'", given["n_epochs"], minimum=1, error=RLConfigError
         )
+        if n_epochs * n_steps * n_envs > MAX_EPOCH_SAMPLES:
+            raise RLConfigError(
+                f"n_epochs * n_steps * n_envs = {n_epochs * n_steps * n_envs:,} samples an"
+                f" update, more than {MAX_EPOCH_SAMPLES:,}"
+            )
         if normalize and batch_size < 2:
             raise RLConfigError("hyperparameter 'batch_size' must be > 1 to normalize advantages")
     if normalize and n_steps * n_envs < 2:

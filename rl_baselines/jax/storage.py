@@ -12,26 +12,41 @@ new one, never a mix):
   states and observations, counters), uncompressed numpy arrays, read
   without pickling.
 
-:func:`~rl_baselines.jax.trainer.load_trainer` builds the trainer from the settings
-(read by :func:`read_saved`) and puts the arrays
-in, each checked by name, shape and dtype: it continues as the saved one
-would have, bit for bit (a test trains N rollouts, saves, loads, trains M and
-compares with N + M in one go).
+:func:`~rl_baselines.jax.trainer.load_trainer` builds the trainer from the
+settings (read by :func:`read_settings`) and puts the arrays in (read by
+:func:`read_state`), each checked by name, shape and dtype before it is
+read: it continues as the saved one would have, bit for bit (a test trains
+N rollouts, saves, loads, trains M and compares with N + M in one go).
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from amaze.agents.robot import as_robot
+from amaze.archives import open_npz, read_npz
+from amaze.errors import AmazeError
 from amaze.runs.config import read_json_object
 from amaze.runs.folder import settled_folder, write_folder, write_json
+from amaze.validation import check_integer
 from rl_baselines import RLConfigError
+from rl_baselines.jax.hyperparameters import MAX_CHUNK_STEPS, checked_hyperparameters
 
-__all__ = ["SETTINGS_FILE", "STATE_FILE", "TRAINER_FORMAT", "read_saved", "save_trainer"]
+__all__ = [
+    "SETTINGS_FILE",
+    "STATE_FILE",
+    "TRAINER_FORMAT",
+    "check_saved",
+    "check_saved_trainers",
+    "read_settings",
+    "read_state",
+    "save_trainer",
+]
 
 SETTINGS_FILE = "trainer.json"
 STATE_FILE = "state.npz"
@@ -57,19 +72,122 @@ def save_trainer(trainer: Any, folder: str | os.PathLike) -> Path:
     return write_folder(folder, fill)
 
 
-def read_saved(folder: str | os.PathLike) -> tuple[Path, dict[str, Any], dict[str, np.ndarray]]:
-    """``(folder, settings, arrays)`` of a trainer saved by :func:`save_trainer`, read back.
+def read_settings(folder: str | os.PathLike) -> tuple[Path, dict[str, Any]]:
+    """``(folder, settings)`` of a trainer saved by :func:`save_trainer`: what rebuilds it.
 
-    :func:`rl_baselines.jax.trainer.load_trainer` builds the trainer from them.
-    A missing or malformed file raises :class:`RLConfigError`.
+    A missing or malformed ``trainer.json`` raises :class:`RLConfigError` naming it.
     """
     path = settled_folder(folder)
     settings = read_json_object(path / SETTINGS_FILE, RLConfigError, "saved trainer")
     if settings.pop("format", None) != TRAINER_FORMAT:
         raise RLConfigError(f"{path / SETTINGS_FILE} is not a saved JAX trainer ({TRAINER_FORMAT})")
+    return path, settings
+
+
+#: The optimizer's second moments: square roots are taken of them, so never negative.
+_SECOND_MOMENTS = ("opt_state/exp_avg_sq/", "opt_state/square_avg/")
+
+
+def check_state_values(name: str, value: np.ndarray) -> None:
+    """A training state's array ``name`` holds values training can go on from.
+
+    Every float array (parameters, optimizer moments, observations) is
+    finite; second moments are not negative. :class:`RLConfigError` otherwise.
+    """
+    if value.dtype.kind != "f":
+        return
+    if not np.isfinite(value).all():
+        raise RLConfigError(f"training state: array {name!r} holds NaN or infinity")
+    if name.startswith(_SECOND_MOMENTS) and (value < 0).any():
+        raise RLConfigError(f"training state: array {name!r} holds negative moments")
+
+
+def check_saved(folder: str | os.PathLike) -> None:
+    """Check a saved trainer as far as it can be without JAX; :class:`RLConfigError` otherwise.
+
+    The settings are checked as the trainer checks them (algorithm, robot,
+    hyperparameters with their network and rollout bounds, ``n_envs``,
+    ``chunk_steps``), ``state.npz`` must be a zip archive of ``.npy``
+    entries within the absolute bounds of :mod:`amaze.archives`, and its
+    parameters and optimizer moments hold values training can go on from
+    (:func:`check_state_values`). Each array's shape against the trainer's is
+    checked when it is loaded (:func:`~rl_baselines.jax.trainer.load_trainer`).
+    """
+    path, settings = read_settings(folder)
+    where = f"{path / SETTINGS_FILE}"
     try:
-        with np.load(path / STATE_FILE, allow_pickle=False) as stored:
-            arrays = {name: stored[name] for name in stored.files}
-    except (OSError, ValueError) as error:
-        raise RLConfigError(f"{path / STATE_FILE} cannot be read: {error}") from None
-    return path, settings, arrays
+        robot = as_robot(settings.get("robot"))
+    except (AmazeError, TypeError) as error:
+        raise RLConfigError(f"{where}: robot {settings.get('robot')!r}: {error}") from None
+    hyperparameters = settings.get("hyperparameters") or {}
+    if not isinstance(hyperparameters, dict):
+        raise RLConfigError(f"{where}: hyperparameters {hyperparameters!r} is not an object")
+    try:
+        checked_hyperparameters(
+            settings.get("algo"),
+            hyperparameters,
+            robot_images=not robot.discrete_inputs,
+            n_envs=settings.get("n_envs", 4),
+        )
+        check_integer(
+            "chunk_steps",
+            settings.get("chunk_steps", 1),
+            minimum=1,
+            maximum=MAX_CHUNK_STEPS,
+            error=RLConfigError,
+        )
+    except RLConfigError as error:
+        raise RLConfigError(f"{where}: {error}") from None
+    state = path / STATE_FILE
+    where = f"saved trainer state '{state}'"
+    with open_npz(state, where, RLConfigError) as archive:
+        for name in archive.names:
+            if name.startswith(("params/", "opt_state/")):
+                try:
+                    check_state_values(name, archive.read(name))
+                except RLConfigError as error:
+                    raise RLConfigError(f"{state}: {error}") from None
+
+
+def check_saved_trainers(run_folder: str | os.PathLike) -> None:
+    """:func:`check_saved` on every trainer saved under ``run_folder`` (a JAX run's).
+
+    What ``amaze-train --resume`` runs before it imports torch or JAX, so that
+    a damaged or crafted trainer is refused at the cost of the command's start.
+    """
+    root = Path(run_folder)
+    if root.is_dir():
+        for settings in sorted(root.rglob(SETTINGS_FILE)):
+            if not settings.parent.name.startswith("."):  # a folder being written (write_folder)
+                check_saved(settings.parent)
+
+
+def read_state(folder: Path, expected: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The arrays of ``folder``'s ``state.npz``, each exactly like its namesake in ``expected``.
+
+    ``expected`` is the state of the trainer rebuilt from the settings: every
+    array's name, shape and dtype are checked against it before the array is
+    inflated, so a damaged or crafted file can make the reader allocate no
+    more than the trainer itself holds. Raises :class:`RLConfigError` naming the file.
+    """
+    path = folder / STATE_FILE
+    where = f"saved trainer state '{path}'"
+
+    def expect(name: str, shape: tuple[int, ...], dtype: np.dtype) -> None:
+        if name not in expected:
+            raise RLConfigError(f"{where}: array {name!r} is not part of a trainer's state")
+        model = expected[name]
+        if shape != model.shape or dtype != model.dtype:
+            raise RLConfigError(
+                f"{where}: array {name!r} is {dtype} of shape {shape}; the trainer's is"
+                f" {model.dtype} of shape {model.shape}"
+            )
+
+    budget = sum(array.nbytes for array in expected.values()) + (1 << 20)
+    arrays = read_npz(
+        path, where, RLConfigError, max_entry_bytes=budget, max_total_bytes=budget, expect=expect
+    )
+    missing = sorted(set(expected) - set(arrays))
+    if missing:
+        raise RLConfigError(f"{where} lacks the arrays {missing}")
+    return arrays

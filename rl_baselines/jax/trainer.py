@@ -40,7 +40,11 @@ from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
 from amaze.validation import check_integer
 from rl_baselines import RLConfigError
-from rl_baselines.jax.hyperparameters import Hyperparameters, checked_hyperparameters
+from rl_baselines.jax.hyperparameters import (
+    MAX_CHUNK_STEPS,
+    Hyperparameters,
+    checked_hyperparameters,
+)
 from rl_baselines.jax.networks import (
     Params,
     PolicySpec,
@@ -52,6 +56,7 @@ from rl_baselines.jax.networks import (
 from rl_baselines.jax.optim import OptState, init_optimizer
 from rl_baselines.jax.policy import NumpyPolicy
 from rl_baselines.jax.rollout import EnvCarry, collect_rollout, reset_envs
+from rl_baselines.jax.storage import check_state_values
 from rl_baselines.jax.update import (
     Batch,
     a2c_update,
@@ -62,6 +67,7 @@ from rl_baselines.jax.update import (
 
 __all__ = [
     "CHUNK_STEPS",
+    "MAX_CHUNK_STEPS",
     "JaxTrainer",
     "RolloutStats",
     "Static",
@@ -315,7 +321,9 @@ class JaxTrainer:
             "max_cells": max_cells,
             "max_codes": max_codes,
         }
-        chunk_steps = check_integer("chunk_steps", chunk_steps, minimum=1, error=RLConfigError)
+        chunk_steps = check_integer(
+            "chunk_steps", chunk_steps, minimum=1, maximum=MAX_CHUNK_STEPS, error=RLConfigError
+        )
         per_call = max(1, chunk_steps // hp.rollout_size)
         #: Rollouts per compiled call (the scan's fixed length).
         self.chunk = 1 << (per_call.bit_length() - 1)
@@ -405,8 +413,11 @@ class JaxTrainer:
 
     def load_state_arrays(self, arrays: Mapping[str, Any]) -> None:
         """Continue from arrays of :meth:`state_arrays` (same algorithm, robot, hyperparameters,
-        ``n_envs`` and number of mazes), each checked."""
+        ``n_envs`` and number of mazes), each checked: every float array (parameters,
+        optimizer moments, observations) finite, second moments not negative."""
         state = state_from_arrays(self.state, arrays)
+        for name, value in arrays.items():
+            check_state_values(name, np.asarray(value))
         n_mazes = int(self.maze_params.start.shape[0])
         index = np.asarray(state.envs.maze_index)
         if index.min() < 0 or index.max() >= n_mazes:
@@ -488,12 +499,16 @@ def load_trainer(folder: str | os.PathLike) -> JaxTrainer:
     A missing or malformed file, other settings or arrays that do not fit raise
     :class:`RLConfigError`.
     """
-    from rl_baselines.jax.storage import SETTINGS_FILE, read_saved
+    from rl_baselines.jax.storage import SETTINGS_FILE, STATE_FILE, read_settings, read_state
 
-    path, settings, arrays = read_saved(folder)
+    path, settings = read_settings(folder)
     try:
         trainer = JaxTrainer(**settings)
-    except TypeError as error:
+    except (TypeError, RLConfigError) as error:
         raise RLConfigError(f"{path / SETTINGS_FILE}: {error}") from None
-    trainer.load_state_arrays(arrays)
+    arrays = read_state(path, trainer.state_arrays())
+    try:
+        trainer.load_state_arrays(arrays)
+    except RLConfigError as error:
+        raise RLConfigError(f"{path / STATE_FILE}: {error}") from None
     return trainer

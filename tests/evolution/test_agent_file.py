@@ -175,7 +175,7 @@ def good_metadata(**changes: object) -> dict:
             lambda p: write_npz(
                 p, good_metadata(architecture={"type": "mlp", "robot": "DD", "hidden": [0]})
             ),
-            "width 0",
+            "hidden layer 0",
         ),
         (lambda p: write_npz(p, good_metadata(), params=np.array([{}], dtype=object)), "pickle"),
     ],

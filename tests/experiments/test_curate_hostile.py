@@ -1,7 +1,8 @@
 """Hostile requests to the curation page's server: each is a 4xx, and the server goes on.
 
 The probes are an adversarial tester's: tokens that are not ASCII, JSON bodies
-nested tens of thousands deep, NaN and infinities in a maze's fields, file
+nested tens of thousands deep, NaN and infinities in a maze's fields, lone
+surrogates (``"\\ud800"``) in any string of a body or a URL, file
 names too long for the file system, link loops in the run folder, a damaged
 agent behind an episode. The test client raises whatever the application does
 not handle (a 500), so each probe fails loudly on a server that crashes on it;
@@ -24,7 +25,7 @@ import pytest
 import uvicorn
 from fastapi.testclient import TestClient
 
-from experiments.curate.server import COOKIE, MAX_MESSAGE
+from experiments.curate.server import COOKIE, MAX_MESSAGE, _problem
 from experiments.curate.session import CurationSession, branch_folder
 from tests.experiments.test_curate_server import CSRF, TOKEN, new_session, post, question
 
@@ -72,8 +73,15 @@ def raw_post(client: TestClient, path: str, body: bytes, **headers: str | bytes)
 
 @pytest.mark.parametrize(
     "query",
-    ["token=%C3%A9", "token=%FF", "token=t0ken-for-test%C3%A9", "token=%00", "token=" + "x" * 5000],
-    ids=["e-acute", "not-utf8", "token-and-more", "nul", "long"],
+    [
+        "token=%C3%A9",
+        "token=%FF",
+        "token=t0ken-for-test%C3%A9",
+        "token=%00",
+        "token=" + "x" * 5000,
+        "token=%ED%A0%80",
+    ],
+    ids=["e-acute", "not-utf8", "token-and-more", "nul", "long", "surrogate"],
 )
 def test_a_token_of_any_text_in_the_query_is_a_403(served, query: str) -> None:
     _session, client = served
@@ -84,8 +92,8 @@ def test_a_token_of_any_text_in_the_query_is_a_403(served, query: str) -> None:
 
 @pytest.mark.parametrize(
     "cookie",
-    [b"\xe9", "é".encode(), b"t0ken-for-tests\xff", b"\x7f"],
-    ids=["latin-1", "utf-8", "token-and-more", "delete"],
+    [b"\xe9", "é".encode(), b"t0ken-for-tests\xff", b"\x7f", b"\xed\xa0\x80"],
+    ids=["latin-1", "utf-8", "token-and-more", "delete", "surrogate"],
 )
 def test_a_cookie_of_any_bytes_is_a_403(served, cookie: bytes) -> None:
     _session, client = served
@@ -96,8 +104,8 @@ def test_a_cookie_of_any_bytes_is_a_403(served, cookie: bytes) -> None:
 
 @pytest.mark.parametrize(
     "csrf",
-    [b"\xe9", "csrf-for-testsé".encode(), b"\xff" * 300],
-    ids=["latin-1", "token-and-more", "long"],
+    [b"\xe9", "csrf-for-testsé".encode(), b"\xff" * 300, b"\xed\xa0\x80"],
+    ids=["latin-1", "token-and-more", "long", "surrogate"],
 )
 def test_a_csrf_token_of_any_bytes_is_a_403(served, csrf: bytes) -> None:
     _session, client = served
@@ -152,6 +160,79 @@ def test_an_answer_that_is_not_finite_is_a_400(served) -> None:
         refused(raw_post(client, "/api/answer", body), 400)
     assert session.phase == "question"  # nothing was taken
     still_serves(client)
+
+
+#: Bodies whose strings hold a lone surrogate (JSON's ``\ud800`` escape), per route.
+SURROGATES = {
+    "/api/answer": [
+        b'{"question": "\\ud800", "answer": 0}',
+        b'{"question": "select-2", "answer": "\\ud800"}',
+        b'{"question": "select-2", "answer": ["M4_5x5\\udfff", "M4_5x5"]}',
+        b'{"question": "select-2", "answer": {"branch": "\\ud800"}}',
+        b'{"\\ud800": "select-2"}',
+        b'{"question": "select-2\\udc00\\ud800", "answer": 0}',
+    ],
+    "/api/maze": [
+        b'{"string": "\\ud800"}',
+        b'{"string": "M4_\\ud800_5x5"}',
+        b'{"string": "M4_5x5", "reference": "M4_\\udbff"}',
+        b'{"string": "M4_5x5", "new_seed": "\\ud800"}',
+        b'{"fields": {"start": "\\ud800"}}',
+        b'{"fields": {"start": "SW", "width": 5, "height": 5, "seed": 1, "unicursive": "\\udfff"}}',
+        b'{"fields": "\\ud800", "string": "M4_5x5"}',
+        b'{"fields": {"start": "SW"}, "string": "\\ud800"}',
+        b'{"string": ["\\ud800"]}',
+        b'{"string": "M4_5x5", "\\ud800": 1}',
+        b'{"string": "' + b"x" * 1000 + b'\\ud800"}',
+    ],
+}
+
+
+@pytest.mark.parametrize(
+    ("path", "body"),
+    [(path, body) for path, bodies in SURROGATES.items() for body in bodies],
+    ids=[f"{path.rsplit('/', 1)[1]}-{i}" for path, b in SURROGATES.items() for i in range(len(b))],
+)
+def test_a_string_with_a_lone_surrogate_is_a_400_that_encodes(
+    served, path: str, body: bytes
+) -> None:
+    session, client = served
+    response = raw_post(client, path, body)
+    message = refused(response, 400)
+    assert "lone surrogate" in message
+    assert "\\ud" in message  # named by its escape
+    response.content.decode("utf-8")  # the answer is UTF-8 as it says
+    assert session.phase == "question"  # nothing was taken
+    still_serves(client)
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        "/api/maze.png?string=%ED%A0%80",
+        "/api/maze.png?string=M4_%ED%A0%80_5x5",
+        "/api/maze.png?string=%FF%FE",
+        "/files/%ED%A0%80",
+        "/files/a%FFb",
+        "/api/episode/%ED%A0%80/0/0",
+        "/api/episode/1/0/%FF",
+        "/static/%ED%A0%80",
+    ],
+    ids=["png", "png-in-string", "png-bytes", "file", "file-bytes", "episode", "ff", "static"],
+)
+def test_a_surrogate_or_bad_bytes_in_a_url_is_a_4xx_that_encodes(served, path: str) -> None:
+    _session, client = served
+    response = client.get(path)
+    refused(response, (400, 404))
+    response.content.decode("utf-8")
+    still_serves(client)
+
+
+def test_an_error_message_quoting_a_lone_surrogate_still_encodes() -> None:
+    """Whatever a message quotes, the answer is UTF-8 (the surrogate written as its escape)."""
+    response = _problem(400, "token '\ud800' and more", details=[None, "bad '\udfff'"])
+    data = json.loads(response.body.decode("utf-8"))
+    assert data == {"error": "token '\\ud800' and more", "details": [None, "bad '\\udfff'"]}
 
 
 @pytest.mark.parametrize(
@@ -290,6 +371,7 @@ def test_a_real_server_answers_every_probe_and_logs_no_error(
     post_head = cookie + f"\r\nX-CSRF-Token: {CSRF}\r\nContent-Type: application/json".encode()
     nested = b"[" * 30000
     nan = b'{"fields": {"width": NaN, "height": 5, "seed": 1, "start": "SW"}}'
+    surrogate = b'{"string": "M4_\\ud800", "question": "\\udfff", "answer": ["\\ud800"]}'
     probes = [
         (b"GET /api/state?token=%C3%A9 HTTP/1.1\r\nHost: x", b""),
         (b"GET /api/state HTTP/1.1\r\nHost: x\r\nCookie: " + COOKIE.encode() + b"=\xe9", b""),
@@ -307,9 +389,11 @@ def test_a_real_server_answers_every_probe_and_logs_no_error(
                 body,
             )
             for path in ("/api/answer", "/api/maze")
-            for body in (nested, nan)
+            for body in (nested, nan, surrogate)
         ),
         (b"GET /files/" + b"a" * 300 + b" HTTP/1.1\r\nHost: x\r\n" + cookie, b""),
+        (b"GET /files/%ED%A0%80 HTTP/1.1\r\nHost: x\r\n" + cookie, b""),
+        (b"GET /api/maze.png?string=M4_%ED%A0%80 HTTP/1.1\r\nHost: x\r\n" + cookie, b""),
         (b"GET /files/spiral HTTP/1.1\r\nHost: x\r\n" + cookie, b""),
         (b"GET /api/episode/1/1/0 HTTP/1.1\r\nHost: x\r\n" + cookie, b""),
     ]

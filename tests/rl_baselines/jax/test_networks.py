@@ -45,14 +45,17 @@ def test_init_is_sb3s(robot: str) -> None:
 
 @pytest.mark.parametrize("algo", ["a2c", "ppo"])
 def test_defaults_are_sb3s(algo: str) -> None:
-    """:data:`SB3_DEFAULTS` are the defaults of SB3's ``A2C.__init__`` / ``PPO.__init__``."""
+    """:data:`SB3_DEFAULTS` are the defaults of SB3's ``A2C.__init__`` / ``PPO.__init__``:
+    every argument but those the trainer sets itself (configs are checked against them)."""
     import inspect
 
     import stable_baselines3
 
+    from rl_baselines.config import _RESERVED
     from rl_baselines.jax.hyperparameters import SB3_DEFAULTS
 
     signature = inspect.signature(getattr(stable_baselines3, algo.upper()).__init__)
+    assert set(SB3_DEFAULTS[algo]) == set(signature.parameters) - _RESERVED - {"self"}
     for name, value in SB3_DEFAULTS[algo].items():
         assert signature.parameters[name].default == value, name
 

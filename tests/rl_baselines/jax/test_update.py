@@ -98,7 +98,12 @@ def test_update_equals_sb3_train(algo: str, robot: str, hps: dict[str, Any]) -> 
     for name, value in ((prefix, stats.policy_loss), ("train/value_loss", stats.value_loss),
                         ("train/entropy_loss", stats.entropy_loss),
                         ("train/explained_variance", stats.explained_variance)):  # fmt: skip
-        np.testing.assert_allclose(float(value), logged[name], rtol=GRAD_RTOL, err_msg=name)
+        # explained variance is 1 - Var(returns - values) / Var(returns): near 0 the ratio
+        # is near 1, so float32's rounding of it (about 1e-7 of 1) is an absolute error
+        atol = 1e-6 if name == "train/explained_variance" else 0.0
+        np.testing.assert_allclose(
+            float(value), logged[name], rtol=GRAD_RTOL, atol=atol, err_msg=name
+        )
     if algo == "ppo":
         for name in ("approx_kl", "clip_fraction", "loss"):
             np.testing.assert_allclose(

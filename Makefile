@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DOCS_STAMP := $(VENV)/.installed-docs
 
-.PHONY: venv demo test docs lint format bench clean
+.PHONY: venv demo test test-all docs lint format bench clean
 
 $(STAMP): setup.cfg pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -28,10 +28,16 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/python -m experiments.demo
 
+# `make test`: lint, import contracts and the fast tier (unit, differential and a short run of
+# each trainer and regime); `make test-all` adds the slow tier (`-m slow`: kill/resume, Ray,
+# browser and long end-to-end runs). CI runs both.
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -n 2 --dist loadgroup
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -m "not slow"
+
+test-all: test
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -m slow
 
 # NO_MKDOCS_2_WARNING: the theme's notice about MkDocs' future, printed on every build.
 docs: $(DOCS_STAMP)
@@ -55,4 +61,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_jax_env.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis demo_output site
+	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis demo_output site .jax-cache

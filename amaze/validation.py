@@ -14,8 +14,10 @@ Python's recursion) ends in the caller's error naming where it came from.
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
+from collections.abc import Iterable
 from numbers import Integral, Real
 from typing import Any
 
@@ -27,6 +29,7 @@ __all__ = [
     "check_integer",
     "check_layer_widths",
     "check_number",
+    "closest",
     "nests_within",
     "parse_json",
 ]
@@ -123,6 +126,23 @@ def check_number(
             bounds = f"<= {maximum}"
         raise error(f"{name} {value!r} is not a number {bounds}")
     return number
+
+
+def closest(name: object, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the known name closest to a mistyped ``name``, or ``""``.
+
+    For the messages that refuse an unknown key: a typo is named with what it
+    was meant to be.
+
+    >>> closest("budget_step", ["budget_steps", "budget_seconds", "seed"])
+    " (did you mean 'budget_steps'?)"
+    >>> closest("xyz", ["seed"])
+    ''
+    """
+    if not isinstance(name, str):
+        return ""
+    match = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {match[0]!r}?)" if match else ""
 
 
 def check_layer_widths(

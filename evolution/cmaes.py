@@ -40,7 +40,7 @@ import numpy as np
 
 from amaze.agents.robot import Robot, as_robot
 from amaze.runs.config import config_from_dict
-from amaze.validation import check_integer, check_number
+from amaze.validation import check_integer, check_number, closest
 from evolution import EvolutionConfigError
 from evolution.convolution import MAX_FILTERS
 from evolution.networks import NetworkPopulation, NetworkSpec
@@ -225,8 +225,9 @@ def _check_network(network: Any) -> dict[str, Any]:
         raise EvolutionConfigError(f"CMA-ES config 'network': type {kind!r} is not 'mlp'")
     unknown = sorted(set(network) - set(_NETWORK_KEYS))
     if unknown:
+        named = ", ".join(f"{key}{closest(key, _NETWORK_KEYS)}" for key in unknown)
         raise EvolutionConfigError(
-            f"CMA-ES config 'network': unknown key(s) {', '.join(unknown)}"
+            f"CMA-ES config 'network': unknown key(s) {named}"
             f" (expected {', '.join(_NETWORK_KEYS)}; the robot comes from the run)"
         )
     hidden = network.get("hidden", DEFAULT_NETWORK["hidden"])

@@ -78,7 +78,13 @@ import numpy as np
 
 from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, RobotStringError, as_robot
-from amaze.validation import MAX_HIDDEN_LAYERS, MAX_LAYER_WIDTH, check_integer, check_layer_widths
+from amaze.validation import (
+    MAX_HIDDEN_LAYERS,
+    MAX_LAYER_WIDTH,
+    check_integer,
+    check_layer_widths,
+    closest,
+)
 from evolution import EvolutionConfigError
 from evolution.activations import ACTIVATION_CODES, ACTIVATIONS, activate_block, tanh32
 from evolution.convolution import (
@@ -292,7 +298,8 @@ class NetworkSpec:
         keys = {"robot", "hidden", "activation", "pool", "symmetry", "filters", "stride"}
         unknown = sorted(set(data) - keys)
         if unknown:
-            raise EvolutionConfigError(f"unknown network spec key(s): {', '.join(unknown)}")
+            named = ", ".join(f"{key}{closest(key, keys)}" for key in unknown)
+            raise EvolutionConfigError(f"unknown network spec key(s): {named}")
         if "robot" not in data:
             raise EvolutionConfigError("network spec: 'robot' is missing")
         hidden = data.get("hidden", ())

@@ -392,6 +392,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.steps < 1:
         parser.error(f"--steps {args.steps} must be at least 1")
     out = Path(args.out)
+    if hasattr(sys.stdout, "reconfigure"):  # each line as it is printed, into a pipe or file too
+        sys.stdout.reconfigure(line_buffering=True)
+    print(f"amaze-evo demo: mazes, built-in controllers, then two evolution runs -> {out}/")
     started = time.perf_counter()
     run_mazes(out)
     run_controllers(out)

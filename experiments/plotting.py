@@ -2,10 +2,10 @@
 
 * :func:`paper_style`: matplotlib settings for figures read at a column's
   width (8.5 cm, :data:`COLUMN_WIDTH` inches): 7-8 pt text, thin lines;
-* :class:`Palette`: one colour per trainer/algorithm cell of a study, the
-  same in every figure of its report (tab10 by sorted cell; then tab20b's
-  dark shades beyond 10 cells; evenly spaced hues beyond 20), written once
-  as ``figures/colours.json``;
+* :class:`Palette`: one colour per trainer/algorithm cell, the same in every
+  figure of every report (:func:`cell_colour`, a fixed mapping from the
+  cell's name, whatever else a study holds), written once per report as
+  ``figures/colours.json``;
 * :func:`save_figure`: a figure as PNG (300 dpi), PDF and SVG side by side,
   each written atomically.
 
@@ -15,6 +15,7 @@ costs nothing until it draws.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 from collections.abc import Iterator, Sequence
@@ -24,7 +25,15 @@ from typing import Any
 
 from amaze.runs.folder import write_bytes
 
-__all__ = ["COLUMN_WIDTH", "FORMATS", "Palette", "paper_style", "pyplot", "save_figure"]
+__all__ = [
+    "COLUMN_WIDTH",
+    "FORMATS",
+    "Palette",
+    "cell_colour",
+    "paper_style",
+    "pyplot",
+    "save_figure",
+]
 
 #: A journal column, 8.5 cm, in inches.
 COLUMN_WIDTH = 8.5 / 2.54
@@ -82,41 +91,86 @@ def paper_style() -> Iterator[Any]:
 
 
 #: tab10's colours in an order where neighbours and every other one differ in hue: blue,
-#: orange, green, purple, red, cyan, brown, olive, pink, grey (a comparison of trainers with
-#: one algorithm takes every other cell of the sorted list).
+#: orange, green, purple, red, cyan, brown, olive, pink, grey.
 TAB10_ORDER = (0, 1, 2, 4, 3, 9, 5, 8, 6, 7)
+#: Twelve colours that stay apart on white: tab10's in :data:`TAB10_ORDER`, then Dark2's
+#: ochre and tab20b's dark olive (each at least as far from the others, in CIELAB, as
+#: tab10's closest two are from each other).
+COLOURS = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#9467bd",
+    "#d62728",
+    "#17becf",
+    "#8c564b",
+    "#bcbd22",
+    "#e377c2",
+    "#7f7f7f",
+    "#a6761d",
+    "#637939",
+)
+#: Each trainer's place in :data:`COLOURS` (its colour with ``cmaes``), fixed once and for all:
+#: a trainer added to :data:`experiments.trainers.TRAINERS` takes a free place here.
+TRAINER_SLOTS = {
+    "direct": 0,
+    "interpolation": 1,
+    "edhucat-careful": 2,
+    "edhucat-random": 3,
+    "domain-randomisation": 4,
+    "edhucat-follow-edens": 5,
+    "edens": 6,
+    "edhucat-risky": 7,
+    "edens-populations": 8,
+    "edhucat-edens": 9,
+    "coevolution": 10,
+    "edhucat-moderate": 11,
+}
+#: How far each algorithm moves its trainer's colour along :data:`COLOURS` (a multiple of 3:
+#: the four algorithms of one trainer get four colours, the twelve trainers of one algorithm
+#: twelve).
+ALGORITHM_SHIFTS = {"cmaes": 0, "a2c": 3, "ppo": 6, "neat": 9}
+
+
+def _stable_index(name: str, size: int) -> int:
+    """A place in ``range(size)`` for a name of no table: the same in every process and run
+    (not Python's ``hash``, which changes with each interpreter)."""
+    return int.from_bytes(hashlib.sha256(name.encode("utf-8")).digest()[:8], "big") % size
+
+
+def cell_colour(cell: str) -> str:
+    """The colour of a trainer/algorithm cell (``"direct/ppo"``), the same in every report.
+
+    ``COLOURS[(TRAINER_SLOTS[trainer] + ALGORITHM_SHIFTS[algorithm]) % 12]``: it depends on
+    the cell's name alone, not on the other cells of a study, so a treatment keeps its
+    colour from one report to the next. The cells of one trainer, and those of one
+    algorithm, all differ (the default comparisons of a study). A trainer or an algorithm
+    of neither table (a plug-in's) takes a place from a stable hash of its name.
+    """
+    trainer, algorithm = cell.split("/")[:2]
+    slot = TRAINER_SLOTS.get(trainer)
+    if slot is None:
+        slot = _stable_index(f"trainer:{trainer}", len(COLOURS))
+    shift = ALGORITHM_SHIFTS.get(algorithm)
+    if shift is None:
+        shift = 3 * _stable_index(f"algorithm:{algorithm}", 4)
+    return COLOURS[(slot + shift) % len(COLOURS)]
 
 
 class Palette:
-    """One colour per trainer/algorithm cell (``"direct/ppo"``), whatever the figure.
+    """The colours of a study's trainer/algorithm cells (``"direct/ppo"``), for its figures.
 
-    Cells are sorted by name and take tab10's colours in turn
-    (:data:`TAB10_ORDER`); with more than 10, then the two darkest shades of
-    each of tab20b's hues (no pale colour: lines stay visible on white); with
-    more than 20, evenly spaced colours of the ``turbo`` map.
+    Each cell's colour is :func:`cell_colour`'s: fixed by the cell's name, so that a
+    treatment has one colour in every figure of every report. With more than 12 cells,
+    some share a colour (the figures also name them).
     """
 
     def __init__(self, cells: Sequence[str]) -> None:
-        import matplotlib
-        from matplotlib.colors import to_hex
-
-        ordered = sorted(set(cells))
-        if len(ordered) <= 10:
-            tab10 = matplotlib.colormaps["tab10"].colors
-            colours = [tab10[i] for i in TAB10_ORDER]
-        elif len(ordered) <= 20:  # tab10, then tab20b's darkest two shades of each hue
-            tab10 = matplotlib.colormaps["tab10"].colors
-            tab20b = matplotlib.colormaps["tab20b"].colors
-            colours = [tab10[i] for i in TAB10_ORDER] + list(tab20b[0::4]) + list(tab20b[1::4])
-        else:
-            turbo = matplotlib.colormaps["turbo"]
-            colours = [turbo(0.05 + 0.9 * i / (len(ordered) - 1)) for i in range(len(ordered))]
-        self.colours = {cell: to_hex(colours[i]) for i, cell in enumerate(ordered)}
+        self.colours = {cell: cell_colour(cell) for cell in sorted(set(cells))}
 
     def __call__(self, treatment: str) -> str:
         """The colour of a cell or of a treatment (``trainer/algorithm[/condition]``)."""
-        trainer, algorithm = treatment.split("/")[:2]
-        return self.colours.get(f"{trainer}/{algorithm}", "#666666")
+        return cell_colour(treatment)
 
     def save(self, path: Path) -> Path:
         """Write the mapping as JSON (cell: colour), for figures made elsewhere."""

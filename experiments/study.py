@@ -75,7 +75,7 @@ from typing import Any
 
 from amaze.errors import AmazeError, UsageError, one_line
 from amaze.runs.config import MAX_SEED
-from amaze.validation import nests_within
+from amaze.validation import closest, nests_within
 from experiments.comparisons import (
     MAX_LINES,
     NAME_RULE,
@@ -266,8 +266,9 @@ def parse_study(text: str, source: str = "study") -> Study:
     unknown = set(data) - STUDY_KEYS
     if unknown:
         raise bad(
-            f"unknown key(s) {', '.join(key_shown(k) for k in sorted(unknown))}"
-            f" (known: {', '.join(sorted(STUDY_KEYS))})"
+            "unknown key(s) "
+            + ", ".join(key_shown(k) + closest(k, STUDY_KEYS) for k in sorted(unknown))
+            + f" (known: {', '.join(sorted(STUDY_KEYS))})"
         )
     name = data.get("name")
     if not isinstance(name, str) or not name.strip():

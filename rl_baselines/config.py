@@ -42,7 +42,7 @@ from amaze.curriculum.regimes import REGIMES, branch_allowance
 from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
 from amaze.runs.config import option
 from amaze.runs.regime import RegimeConfig
-from amaze.validation import check_integer, check_number
+from amaze.validation import check_integer, check_number, closest
 from rl_baselines import RLConfigError
 from rl_baselines.jax.hyperparameters import SB3_DEFAULTS
 
@@ -301,7 +301,7 @@ def check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:
         if name in _RESERVED:
             raise RLConfigError(f"{what} is set by the trainer")
         if name not in defaults or name == "self":
-            raise RLConfigError(f"{what} is not one of {algo.upper()}'s")
+            raise RLConfigError(f"{what} is not one of {algo.upper()}'s{closest(name, defaults)}")
         default = defaults[name]
         if name.endswith("_class"):
             raise RLConfigError(f"{what} names a class, which a config file cannot give")

@@ -64,16 +64,14 @@ def agent_paths(path: str | os.PathLike) -> tuple[Path, Path]:
 
 
 def read_metadata(zip_path: Path, json_path: Path) -> tuple[str, Robot]:
-    """The algorithm and the robot of the JSON file beside an agent's zip, checked."""
+    """The algorithm and the robot of an agent's zip: from the JSON file beside it, checked,
+    or (a zip saved by SB3 itself, ``model.save``) from the zip (:func:`stored_metadata`)."""
     source = f"SB3 agent '{zip_path}'"
     if not zip_path.is_file():
         what = "is not a file" if zip_path.exists() else "does not exist"
         raise RLConfigError(f"agent file '{zip_path}' {what}")
-    if not json_path.is_file():
-        raise RLConfigError(
-            f"{source}: its metadata file '{json_path}' does not exist"
-            " (SB3Agent.save writes it beside the zip, with the robot and the algorithm)"
-        )
+    if not json_path.exists():
+        return stored_metadata(zip_path)
     try:
         meta = json.loads(json_path.read_text(encoding="utf-8"))
     except OSError as error:
@@ -102,6 +100,37 @@ def read_metadata(zip_path: Path, json_path: Path) -> tuple[str, Robot]:
     except AmazeError as error:
         raise RLConfigError(f"{source}: metadata 'robot': {error} ('{json_path}')") from None
     return algo.lower(), robot
+
+
+def stored_metadata(zip_path: Path) -> tuple[str, Robot]:
+    """The algorithm and the robot of a zip that SB3 saved itself, read from its ``data``.
+
+    PPO alone stores ``clip_range``; the robot follows from the spaces SB3
+    stores: 8 inputs (DD) or a ``(1, v, v)`` image (vision ``v``), and 4
+    discrete actions or 2 accelerations. A zip whose spaces are no robot's
+    raises :class:`~rl_baselines.RLConfigError` naming it.
+    """
+    source = f"SB3 model '{zip_path}'"
+    _, data = read_model_file(zip_path, source)
+    algo = "ppo" if "clip_range" in data else "a2c"
+    inputs = _stored_shape(data.get("observation_space"))
+    actions = data.get("action_space")
+    kind = actions.get(":type:", "") if isinstance(actions, dict) else ""
+    outputs = "D" if "Discrete" in str(kind) else "C" if "Box" in str(kind) else None
+    if inputs == (8,) and outputs is not None:
+        name = f"D{outputs}"
+    elif inputs is not None and len(inputs) == 3 and inputs[0] == 1 and inputs[1] == inputs[2]:
+        name = f"C{outputs}{inputs[1]}" if outputs is not None else ""
+    else:
+        name = ""
+    try:
+        return algo, as_robot(name)
+    except AmazeError:
+        raise RLConfigError(
+            f"{source} has no metadata file beside it, and its spaces (inputs {inputs},"
+            f" actions {kind or None}) are no robot's: save it with SB3Agent.save, which"
+            " writes the robot"
+        ) from None
 
 
 #: The classes a ``policy_kwargs`` value may name, as SB3 stores them (``str(cls)``

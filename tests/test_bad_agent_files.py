@@ -106,8 +106,16 @@ def _sidecar(meta: object) -> Callable[[Path, Path], None]:
     return make
 
 
-def _no_sidecar(source: Path, target: Path) -> None:
-    target.write_bytes(source.read_bytes())
+def _no_sidecar_no_robot(source: Path, target: Path) -> None:
+    """A zip without metadata whose stored spaces are no robot's (so nothing says the robot)."""
+    with zipfile.ZipFile(source) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    data = json.loads(entries["data"])
+    data["observation_space"]["_shape"] = [3]
+    entries["data"] = json.dumps(data).encode()
+    with zipfile.ZipFile(target, "w") as archive:
+        for name, content in entries.items():
+            archive.writestr(name, content)
 
 
 def _zip_data(change: Callable[[Path, dict[str, bytes]], None]) -> Callable[[Path, Path], None]:
@@ -181,7 +189,7 @@ COMMON = {
 CASES: list[tuple[str, str, Callable[[Path, Path], None]]] = [
     (kind, name, make) for kind in ("zip", "mlp", "neat", "json") for name, make in COMMON.items()
 ] + [
-    ("zip", "no-metadata-file", _no_sidecar),
+    ("zip", "no-metadata-file-spaces-of-no-robot", _no_sidecar_no_robot),
     ("zip", "metadata-not-json", _sidecar("{not json")),
     ("zip", "metadata-a-list", _sidecar([1, 2])),
     ("zip", "unknown-algo", _sidecar({"robot": "DD", "algo": "dqn"})),

@@ -115,3 +115,26 @@ def test_a_robot_the_agent_does_not_drive_is_named_as_given(capsys, evolved):
     status, _, err = run_cli(capsys, str(evolved), "M1_5x5_U", "--robot", "H15")
     assert status == 2
     assert err == f"error: agent '{evolved}' drives DD robots, not H15 (CD15): pass --robot DD\n"
+
+
+def test_a_run_folder_is_scored_with_its_agent(capsys, evolved):
+    by_file = run_cli(capsys, str(evolved), MAZES[0], "--json")
+    by_folder = run_cli(capsys, str(evolved.parent), MAZES[0], "--json")
+    assert by_folder[0] == 0 and json.loads(by_folder[1]) == json.loads(by_file[1])
+
+
+def test_a_folder_without_an_agent_says_which_file_to_give(capsys, evolved, tmp_path):
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    (unfinished / "config.json").write_text("{}")
+    replicates = tmp_path / "replicates"
+    (replicates / "seed-0").mkdir(parents=True)
+    (replicates / "seed-0" / "config.json").write_text("{}")
+    for folder, words in [
+        (unfinished, "has no agent yet"),
+        (replicates, "holds replicates (seed-0)"),
+        (tmp_path / "replicates" / "seed-0" / "..", "holds replicates"),
+        (evolved.parents[1], "not a run folder"),
+    ]:
+        status, _, err = run_cli(capsys, str(folder), MAZES[0])
+        assert status == 2 and words in err, err

@@ -52,7 +52,12 @@ def _options(algo: str, regime: str) -> dict:
     return {"hyperparameters": rollout}
 
 
-@pytest.mark.parametrize("algo", ["cmaes", "neat", "a2c", "ppo", "a2c-jax", "ppo-jax"])
+#: The JAX framework's runs compile, so they are in the slow tier; direct runs of both
+#: frameworks stay in the fast one.
+JAX_ALGOS = [pytest.param(a, marks=pytest.mark.slow) for a in ("a2c-jax", "ppo-jax")]
+
+
+@pytest.mark.parametrize("algo", ["cmaes", "neat", "a2c", "ppo", *JAX_ALGOS])
 @pytest.mark.parametrize("regime", REGIMES)
 def test_every_run_folder_has_the_same_evaluations(tmp_path: Path, regime: str, algo: str) -> None:
     if algo not in EVOLUTION and regime == "edens-populations":

@@ -17,6 +17,8 @@ import pytest
 
 from tests.run_folders import load_tool
 
+pytestmark = pytest.mark.slow
+
 fuzz_resume = load_tool("fuzz_resume")
 
 TRAINERS = sorted(fuzz_resume.RUNS)

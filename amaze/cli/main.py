@@ -3,12 +3,12 @@
 Sub-commands: ``inspect``, ``render``, ``stats`` (mazes from their strings;
 ``-`` reads them from standard input, one per line), ``run`` (alias ``play``:
 one controller, one episode, optional trajectory PNG and GIF), ``inputs``
-(the input-recognition test), ``suite`` (the standard evaluation suite:
-list, render, evaluate a controller), ``evaluate`` (any agent on any mazes,
-by the evaluation protocol) and ``interpolate`` (the stages of an
-interpolation curriculum between two mazes). User mistakes print one line
-``error: ...`` on standard error and exit with status 2; there is no traceback
-for bad input.
+(the input-recognition test), ``suite`` (the standard evaluation suite, or
+the paper's with ``--paper``: list, render, evaluate a controller),
+``evaluate`` (any agent on any mazes, by the evaluation protocol) and
+``interpolate`` (the stages of an interpolation curriculum between two mazes).
+User mistakes print one line ``error: ...`` on standard error and exit with
+status 2; there is no traceback for bad input.
 """
 
 from __future__ import annotations
@@ -154,7 +154,7 @@ def _cmd_run(args: argparse.Namespace) -> None:
         from amaze.agents.trajectories import save_episode_gif, save_trajectory_png
 
         caption = (
-            f"{args.controller} controller · paper reward {outcome['normalized_reward']:+.3f}"
+            f"{args.controller} controller · R̄ {outcome['normalized_reward']:+.3f}"
             f" · pretty reward {outcome['pretty_reward']:+.3f}"
         )
         if trajectory_png is not None:
@@ -196,26 +196,44 @@ def _cmd_inputs(args: argparse.Namespace) -> None:
 
 
 def _cmd_suite(args: argparse.Namespace) -> None:
-    from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, standard_suite
+    from amaze.evaluation.suite import (
+        PAPER_EVALUATION_MAZE,
+        PAPER_TRAINING_MAZE,
+        paper_suite,
+        standard_suite,
+    )
 
     render_path = _output_file(args.render, ".png")
     csv_path = _output_file(args.csv, ".csv")
     if csv_path is not None and args.evaluate is None:
         raise UsageError("--csv needs --evaluate CONTROLLER")
-    suite = standard_suite()
+    suite = paper_suite() if args.paper else standard_suite()
+    title = "the paper's evaluation suite" if args.paper else "the standard evaluation suite"
     if args.evaluate is not None:
-        from amaze.evaluation.protocol import evaluate
+        from amaze.evaluation.protocol import Evaluator
 
         args.controller = args.evaluate
         policy = _controller(args)
-        report = evaluate(policy, args.robot, deadline_factor=args.deadline_factor)
-        print(f"{args.evaluate} controller on the standard evaluation suite:")
+        evaluator = Evaluator(args.robot, suite, deadline_factor=args.deadline_factor)
+        report = evaluator.evaluate(policy)
+        print(f"{args.evaluate} controller on {title}:")
         print(report.format())
         if csv_path is not None:
             report.write_csv(csv_path)
             print(f"episodes -> {csv_path}")
     elif args.json:
         print(json.dumps(suite.to_dict()))
+    elif args.paper:
+        last = suite.seed_offset + suite.sample_size - 1
+        print(
+            f"{title}: {len(suite)} mazes x 4 rotations (chosen by its script among the seeds"
+            f" {suite.seed_offset}..{last} of each family)"
+        )
+        for maze in suite.mazes:
+            print(
+                f"  {maze.column:<9} {maze.row:<6} entropy={maze.script_entropy:.3f} nats"
+                f"  S={maze.surprisingness:.3f}  {maze.string}"
+            )
     else:
         print(f"standard evaluation suite: {len(suite)} mazes x 4 rotations"
               f" (S from samples of {suite.sample_size} mazes per column)")  # fmt: skip
@@ -236,6 +254,8 @@ def _cmd_suite(args: argparse.Namespace) -> None:
 
 #: The ``amaze evaluate`` argument that stands for the standard suite's 18 mazes.
 SUITE_ARGUMENT = "suite"
+#: The ``amaze evaluate`` argument that stands for the paper's suite's 18 mazes.
+PAPER_SUITE_ARGUMENT = "paper"
 
 
 def _listed_mazes(lines: Iterable[str], source: str) -> Iterator[tuple[str, str]]:
@@ -262,7 +282,8 @@ def _evaluation_arguments(arguments: Sequence[str]) -> Iterator[tuple[str, str |
     """(maze string, where it was read or None) of ``amaze evaluate``'s maze arguments.
 
     An argument is ``-`` (standard input), ``suite`` (the standard suite's
-    mazes), the path of an existing file of maze strings, or else a maze string.
+    mazes), ``paper`` (the paper's suite's), the path of an existing file of
+    maze strings, or else a maze string.
     """
     for argument in arguments:
         if argument == "-":
@@ -271,6 +292,10 @@ def _evaluation_arguments(arguments: Sequence[str]) -> Iterator[tuple[str, str |
             from amaze.evaluation.suite import standard_suite
 
             yield from ((m, None) for m in standard_suite().maze_strings(rotations=False))
+        elif argument == PAPER_SUITE_ARGUMENT:
+            from amaze.evaluation.suite import paper_suite
+
+            yield from ((m, None) for m in paper_suite().maze_strings(rotations=False))
         elif Path(argument).exists():
             yield from _maze_file(argument)
         else:
@@ -330,17 +355,23 @@ def _evaluation_table(outcome: dict[str, Any]) -> str:
     recognition = outcome["input_recognition"]
     if recognition is not None:
         rates = ", ".join(f"{k} {100 * v:.1f}%" for k, v in outcome["input_rates"].items())
-        lines.append(f"  input recognition {100 * recognition:.1f}% ({rates})")
+        paper = 100 * outcome["paper_input_recognition"]
+        lines.append(
+            f"  input recognition {100 * recognition:.1f}% ({rates}); as the paper scored it"
+            f" {paper:.1f}%"
+        )
     return "\n".join(lines)
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> None:
     from amaze.agents.robot import as_robot
-    from amaze.evaluation.controllers import make_controller
+    from amaze.evaluation.controllers import make_controller, run_folder_agent
     from amaze.evaluation.protocol import evaluate
 
     csv_path = _output_file(args.csv, ".csv")
     mazes = _evaluation_mazes(args.mazes)
+    if Path(args.agent).is_dir():  # a run folder: its agent, named in the report
+        args.agent = str(run_folder_agent(Path(args.agent)))
     policy = make_controller(args.agent, args.robot, seed=args.seed)
     robot = as_robot(getattr(policy, "robot", None) or args.robot or "DD")
     report = evaluate(
@@ -503,6 +534,11 @@ def _add_suite(commands: argparse._SubParsersAction) -> None:
     suite = commands.add_parser(
         "suite", help="list, render or evaluate on the standard evaluation suite"
     )
+    suite.add_argument(
+        "--paper",
+        action="store_true",
+        help="the paper's evaluation suite (the 18 mazes of its Table 3) instead",
+    )
     suite.add_argument("--json", action="store_true", help="print the suite as JSON")
     suite.add_argument("--render", metavar="PNG", help="draw the 18 mazes (columns x rows)")
     suite.add_argument(
@@ -523,14 +559,15 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
     evaluate.add_argument(
         "agent",
         metavar="AGENT",
-        help="a saved agent (evolved .npz, SB3 .zip, tabular .json), random or oracle",
+        help="a saved agent (evolved .npz, SB3 .zip, tabular .json), a run folder (its agent),"
+        " random or oracle",
     )
     evaluate.add_argument(
         "mazes",
         nargs="+",
         metavar="MAZE",
-        help="maze strings, files of them (one per line, # comments), - (stdin)"
-        " or suite (the standard suite's 18 mazes)",
+        help="maze strings, files of them (one per line, # comments), - (stdin),"
+        " suite (the standard suite's 18 mazes) or paper (the paper's suite's 18 mazes)",
     )
     evaluate.add_argument(
         "--rotations",

@@ -86,7 +86,7 @@ from amaze.curriculum.validation import reserved_seeds, unseen_mazes
 from amaze.maze.maze import Maze, as_mazes, rotations
 from amaze.maze.signs import Sign, SignError
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
-from amaze.validation import check_integer, check_number
+from amaze.validation import check_integer, check_number, closest
 
 __all__ = [
     "DESCRIPTOR_SCALES",
@@ -228,9 +228,9 @@ def options_from_dict(cls: type[_Options], data: Mapping[str, Any] | None, what:
     known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     unknown = sorted(set(data) - known)
     if unknown:
+        named = ", ".join(f"{key!r}{closest(key, known)}" for key in unknown)
         raise CoevolutionError(
-            f"unknown {what} option(s) {', '.join(map(repr, unknown))}"
-            f" (known: {', '.join(sorted(known))})"
+            f"unknown {what} option(s) {named} (known: {', '.join(sorted(known))})"
         )
     return cls(**data)
 

@@ -52,7 +52,7 @@ import numpy as np
 
 from amaze.errors import AmazeError
 from amaze.maze import rotations
-from amaze.validation import check_integer, check_number
+from amaze.validation import check_integer, check_number, closest
 
 __all__ = [
     "BUILTIN_CURATORS",
@@ -371,9 +371,8 @@ def refuse_unknown_options(context: CuratorContext, name: str, known: Sequence[s
     unknown = sorted(set(context.options) - set(known))
     if unknown:
         takes = f"known: {', '.join(known)}" if known else "it takes none"
-        raise CuratorError(
-            f"{context.role} {name!r}: unknown option(s) {', '.join(unknown)} ({takes})"
-        )
+        named = ", ".join(f"{key}{closest(key, known)}" for key in unknown)
+        raise CuratorError(f"{context.role} {name!r}: unknown option(s) {named} ({takes})")
 
 
 def check_mazes(mazes: Any, k: int, who: str) -> list[str]:

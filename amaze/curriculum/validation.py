@@ -1,11 +1,12 @@
 """Validation mazes: the target's family, never the evaluation suite.
 
 Automated curators judge agents on mazes they did not train on. Those mazes
-must not be the standard evaluation suite's (nor the paper's training and
-evaluation mazes): a curator that selected agents on the suite would be
-tuned for the 18 mazes the results are reported on. :func:`validation_mazes`
-draws the target's fields with fresh seeds, disjoint from every seed of the
-suite and of the paper's two mazes, from a seeded generator.
+must not be the standard evaluation suite's (nor the paper's suite, nor the
+paper's training and evaluation mazes): a curator that selected agents on the
+suite would be tuned for the 18 mazes the results are reported on.
+:func:`validation_mazes` draws the target's fields with fresh seeds, disjoint
+from every seed of both suites and of the paper's two mazes, from a seeded
+generator.
 """
 
 from __future__ import annotations
@@ -16,7 +17,12 @@ from functools import lru_cache
 import numpy as np
 
 from amaze.curriculum.genome import SEED_RANGE
-from amaze.evaluation.suite import PAPER_EVALUATION_MAZE, PAPER_TRAINING_MAZE, standard_suite
+from amaze.evaluation.suite import (
+    PAPER_EVALUATION_MAZE,
+    PAPER_TRAINING_MAZE,
+    paper_suite,
+    standard_suite,
+)
 from amaze.maze.spec import MazeSpec
 from amaze.validation import check_integer
 
@@ -28,8 +34,9 @@ UNSEEN_MAZES = 32
 
 @lru_cache(maxsize=1)
 def reserved_seeds() -> frozenset[int]:
-    """The seeds a validation maze never has: the suite's and the paper's two mazes'."""
+    """The seeds a validation maze never has: both suites' and the paper's two mazes'."""
     mazes = [*standard_suite().maze_strings(rotations=False)]
+    mazes += paper_suite().maze_strings(rotations=False)
     mazes += [PAPER_TRAINING_MAZE, PAPER_EVALUATION_MAZE]
     return frozenset(MazeSpec.from_string(maze).seed for maze in mazes)
 

@@ -6,7 +6,8 @@
 * :mod:`~amaze.evaluation.inputs`: the input-recognition test (its picture in
   :mod:`~amaze.evaluation.inputs_picture`);
 * :mod:`~amaze.evaluation.suite`: the standard evaluation suite (each maze in its
-  rotations, :func:`amaze.maze.rotations`);
+  rotations, :func:`amaze.maze.rotations`) and the paper's (:func:`paper_suite`, built
+  by :mod:`~amaze.evaluation.paper_suite`);
 * :mod:`~amaze.evaluation.protocol`: :func:`evaluate` / :class:`Evaluator`, the one
   protocol every agent goes through.
 """
@@ -17,6 +18,8 @@ from amaze.evaluation.suite import (
     PAPER_EVALUATION_MAZE,
     PAPER_TRAINING_MAZE,
     EvaluationSuite,
+    PaperSuite,
+    paper_suite,
     standard_suite,
 )
 
@@ -28,8 +31,10 @@ __all__ = [
     "EvaluationReport",
     "EvaluationSuite",
     "Evaluator",
+    "PaperSuite",
     "Policy",
     "evaluate",
+    "paper_suite",
     "record_episode",
     "run_episodes",
     "standard_suite",

@@ -47,6 +47,7 @@ __all__ = [
     "TabularController",
     "goal_directions",
     "make_controller",
+    "run_folder_agent",
     "train_tabular",
 ]
 
@@ -484,14 +485,17 @@ def make_controller(name: str, robot: Robot | str | None = None, *, seed: int = 
 
     ``name`` is ``random`` (seeded with ``seed``), ``oracle``, the path of a
     tabular controller saved as JSON (which keeps its own seed; DD robots only),
-    or the path of an agent saved by another package that registers a loader
+    the path of an agent saved by another package that registers a loader
     for its file suffix (SB3 agents, ``.zip``, from ``rl_baselines``; evolved
-    agents, ``.npz``, from ``evolution``). ``robot=None`` takes the robot a
-    saved agent records (DD for ``random`` and ``oracle``); a robot that the
-    agent does not drive is refused, named as the user spelled it.
+    agents, ``.npz``, from ``evolution``), or a run folder (its agent).
+    ``robot=None`` takes the robot a saved agent records (DD for ``random``
+    and ``oracle``); a robot that the agent does not drive is refused, named
+    as the user spelled it.
     """
     given = "DD" if robot is None else robot
     as_robot(given)  # a bad robot string is refused before any file is read
+    if isinstance(name, str) and Path(name).is_dir():
+        name = str(run_folder_agent(Path(name)))
     if name == "random":
         return RandomController(given, seed=seed)
     if name == "oracle":
@@ -515,6 +519,31 @@ def make_controller(name: str, robot: Robot | str | None = None, *, seed: int = 
         " or the path of a saved agent (tabular .json, SB3 .zip with rl_baselines,"
         " evolved .npz with evolution)"
     )
+
+
+def run_folder_agent(folder: Path) -> Path:
+    """The agent file of the run folder ``folder`` (its ``summary.json``'s ``agent``).
+
+    A folder that is not a run, a run that has not finished, or a folder of
+    replicates (``seed-<s>/`` runs) raises :class:`ControllerError` saying
+    which agent file to give instead.
+    """
+    if not (folder / "config.json").is_file():
+        seeds = sorted(p.name for p in folder.glob("seed-*") if (p / "config.json").is_file())
+        if seeds:
+            shown = ", ".join(seeds[:3]) + (", ..." if len(seeds) > 3 else "")
+            raise ControllerError(
+                f"'{folder}' holds replicates ({shown}), one agent each: give one run's folder"
+                f" (such as '{folder / seeds[0]}')"
+            )
+        raise ControllerError(f"'{folder}' is a folder, not a run folder (it has no config.json)")
+    agents = sorted(p for p in folder.glob("agent.*") if p.suffix in (".npz", ".zip"))
+    if not agents:
+        raise ControllerError(
+            f"run folder '{folder}' has no agent yet: a run writes agent.npz or agent.zip"
+            " when it finishes (resume it to finish it)"
+        )
+    return agents[0]
 
 
 #: How far up from a file :func:`_run_agent_hint` looks for the run folder holding it.

@@ -27,6 +27,18 @@ and per the paper's four classes: **empty** (dead ends and corridors without a
 sign), **lure** (dead ends and corridors with a lure), **clue** (intersections
 with a clue) and **trap** (intersections with a trap).
 
+**The paper's figure.** The paper's input recognition (its Table 3) was
+computed by its evaluation script (``eval.py`` of the reference repository,
+``generate_inputs`` and ``evaluate_inputs``) on its own set, for one clue
+(``1``), one lure (``.25``) and one trap (``.5``): this set without the lures
+in dead ends, 116 inputs (20 empty, 36 lures, 36 clues, 24 traps;
+:func:`paper_input_set`); its "All" is the unweighted mean of the four class
+rates (:attr:`InputRecognition.paper_input_recognition`), where
+:attr:`InputRecognition.overall` weighs every input alike. The set follows
+the script from commit 6cb352f on; at c4feded, where the runs ended, its four
+dead ends with no arrival side had all four walls (one input shown four times,
+each time with another correct action), which caps the empty rate at 17/20.
+
 Difference from the reference: discrete (DD) agents *see* the signs. The
 reference never wrote the sign into the 8-float input (§7), so a DD agent could
 not tell a clue from a trap and its scores meant little; here the input holds
@@ -64,6 +76,7 @@ from amaze.maze.spec import MazeSpec
 
 __all__ = [
     "CSV_COLUMNS",
+    "PAPER_INPUT_SIGNS",
     "InputCase",
     "InputClass",
     "InputRecognition",
@@ -72,7 +85,9 @@ __all__ = [
     "InputType",
     "enumerate_inputs",
     "evaluate_inputs",
+    "in_paper_set",
     "inputs_for_maze",
+    "paper_input_set",
 ]
 
 #: Columns of the reference's ``inputs_recognition.csv`` (without its index column).
@@ -293,6 +308,32 @@ def inputs_for_maze(
     )
 
 
+#: The signs of the paper's input set: one clue, one lure, one trap (their lightness).
+PAPER_INPUT_SIGNS: tuple[str, str, str] = ("1", ".25", ".5")
+
+
+def in_paper_set(case: InputCase) -> bool:
+    """Whether the paper's script shows this kind of input: all but lures in dead ends."""
+    return not (case.kind is SignKind.LURE and case.input_type is InputType.DEAD_END)
+
+
+def paper_input_set(robot: Robot | str) -> InputSet:
+    """The inputs of the paper's evaluation script, in its order: 116 for one sign of each kind.
+
+    Dead ends (started in and arrived at), corridors with and without a lure
+    pointing anywhere but the way out, intersections with a clue or a trap
+    (``eval.py``'s ``generate_inputs`` as of commit 6cb352f; see the module
+    docstring). For a DD robot the observations are the script's arrays.
+    """
+    clue, lure, trap = PAPER_INPUT_SIGNS
+    full = enumerate_inputs(robot, [clue], [lure], [trap])
+    keep = [in_paper_set(case) for case in full.cases]
+    observations = full.observations[np.array(keep)]
+    observations.flags.writeable = False
+    cases = tuple(case for case, kept in zip(full.cases, keep, strict=True) if kept)
+    return InputSet(full.robot, cases, observations, full.clues, full.lures, full.traps)
+
+
 def _as_signs(name: str, signs: object) -> tuple[Sign, ...]:
     if isinstance(signs, (str, Sign)) or not isinstance(signs, Iterable):
         raise InputRecognitionError(f"{name} must be a sequence of signs, not {signs!r}")
@@ -508,6 +549,28 @@ class InputRecognition:
         rates = [rate for c, rate in self.rates.items() if c in PAPER_CLASSES]
         return float(np.mean(rates)) if rates else math.nan
 
+    @property
+    def paper_rates(self) -> dict[InputClass, float]:
+        """Rates of the paper's classes over the inputs its script shows (:func:`in_paper_set`)."""
+        correct: dict[InputClass, int] = {}
+        totals: dict[InputClass, int] = {}
+        for case, ok in zip(self.inputs.cases, self.success, strict=True):
+            if case.input_class in PAPER_CLASSES and in_paper_set(case):
+                totals[case.input_class] = totals.get(case.input_class, 0) + 1
+                correct[case.input_class] = correct.get(case.input_class, 0) + int(ok)
+        return {c: correct[c] / totals[c] for c in PAPER_CLASSES if c in totals}
+
+    @property
+    def paper_input_recognition(self) -> float:
+        """The paper's input recognition: the unweighted mean of :attr:`paper_rates`.
+
+        Its script's "All"; on a set enumerated for the paper's signs
+        (:data:`PAPER_INPUT_SIGNS`), the same answers scored on
+        :func:`paper_input_set`.
+        """
+        rates = list(self.paper_rates.values())
+        return float(np.mean(rates)) if rates else math.nan
+
     def summary(self) -> dict[str, Any]:
         """A JSON-ready digest: overall and class-average rates, per-class and per-type figures."""
         return {
@@ -515,6 +578,7 @@ class InputRecognition:
             "n_inputs": len(self),
             "overall": self.overall,
             "class_average": self.class_average,
+            "paper_input_recognition": self.paper_input_recognition,
             "rates": {c.value: r for c, r in self.rates.items()},
             "counts": {c.value: n for c, n in self.counts.items()},
             "totals": {c.value: n for c, n in self.totals.items()},

@@ -17,6 +17,10 @@ returns an :class:`EvaluationReport`:
   ``input_rates``. It is ``None`` for continuous robots (their inputs are not
   enumerable) and for privileged policies that read the maze itself (the
   oracle), for which it has no meaning;
+* ``paper_input_recognition``: the same answers scored as the paper's
+  evaluation script scored them (the unweighted mean of the four class rates,
+  lures in dead ends left out; see :mod:`amaze.evaluation.inputs`), the input
+  recognition of the paper's Table 3; ``None`` where ``input_recognition`` is;
 
 and every episode's scores, aggregated per suite maze and per column.
 
@@ -66,7 +70,8 @@ __all__ = [
     "evaluate",
 ]
 
-#: The signs of the input-recognition test: those of the suite's mazes (C1, L.25, T.5).
+#: The signs of the input-recognition test: those of the suite's mazes (C1, L.25, T.5), the
+#: paper's (:data:`~amaze.evaluation.inputs.PAPER_INPUT_SIGNS`).
 INPUT_SIGNS_MAZE = PAPER_TRAINING_MAZE
 
 #: How many rotations of each maze an evaluation may play: the maze as given, or all four.
@@ -115,6 +120,8 @@ class EvaluationReport:
     input_rates: dict[str, float] = field(default_factory=dict)
     #: Episodes played per given maze: 1 (as given) or 4 (its four rotations).
     rotations: int = 1
+    #: The input recognition as the paper's script computed it (see the module docstring).
+    paper_input_recognition: float | None = None
 
     @property
     def success_rate(self) -> float:
@@ -184,6 +191,7 @@ class EvaluationReport:
             "pretty_reward": self.pretty_reward,
             "input_recognition": self.input_recognition,
             "input_rates": dict(self.input_rates),
+            "paper_input_recognition": self.paper_input_recognition,
         }
 
     def played(self) -> str:
@@ -217,6 +225,9 @@ class EvaluationReport:
         if self.input_rates:
             rates = ", ".join(f"{k} {100 * v:.1f}%" for k, v in self.input_rates.items())
             lines.append(f"  inputs per class: {rates}")
+        if self.paper_input_recognition is not None:
+            paper = 100 * self.paper_input_recognition
+            lines.append(f"  input recognition as the paper scored it: {paper:.1f}%")
         columns = self.per_column()
         width = max(10, *(len(name) for name in columns))
         lines.append(f"  {'column':<{width}} {'success':>8} {'mean R̄':>8} {'pretty':>8}")
@@ -338,17 +349,19 @@ class Evaluator:
             )
             for k in range(len(self.maze_strings))
         )
-        recognition, rates = None, {}
+        recognition, rates, paper = None, {}, None
         privileged = callable(getattr(policy, "bind", None))
         if self.input_set is not None and not privileged:
             outcome = evaluate_inputs(policy, self.input_set)
             recognition, rates = float(outcome.overall), dict(outcome.rates)
+            paper = outcome.paper_input_recognition
         return EvaluationReport(
             robot=self.robot.to_string(),
             episodes=episodes,
             input_recognition=recognition,
             input_rates=rates,
             rotations=self.rotations,
+            paper_input_recognition=paper,
         )
 
 

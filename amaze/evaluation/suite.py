@@ -36,6 +36,14 @@ package (``amaze/data/evaluation_suite.json``), written by
 ``python tools/make_evaluation_suite.py``; the tests check that it matches
 this definition. The paper's direct-training pair is kept alongside:
 :data:`PAPER_TRAINING_MAZE` and :data:`PAPER_EVALUATION_MAZE`.
+
+**The paper's suite.** The paper's RL results (its Table 3) were scored on
+another set of 18 mazes, built by its evaluation script (seeds 1,000,000 to
+1,009,999, one family for the three trap columns; see
+:mod:`amaze.evaluation.paper_suite`). :func:`paper_suite` loads them
+(``amaze/data/paper_suite.json``, written by ``python tools/make_paper_suite.py``)
+as a :class:`PaperSuite`, which the protocol plays as it plays this one. Run
+summaries and reports use the standard suite.
 """
 
 from __future__ import annotations
@@ -62,9 +70,12 @@ __all__ = [
     "ROWS",
     "SAMPLE_SIZE",
     "EvaluationSuite",
+    "PaperSuite",
+    "PaperSuiteMaze",
     "SuiteColumn",
     "SuiteMaze",
     "build_suite",
+    "paper_suite",
     "standard_suite",
 ]
 
@@ -82,6 +93,7 @@ SEED_RANGE = 2**31
 _BATCH = 2048
 
 _DATA_FILE = "evaluation_suite.json"
+_PAPER_DATA_FILE = "paper_suite.json"
 
 
 @dataclass(frozen=True)
@@ -250,3 +262,78 @@ def standard_suite() -> EvaluationSuite:
     """The shipped standard evaluation suite (built by ``tools/make_evaluation_suite.py``)."""
     text = resources.files("amaze").joinpath("data", _DATA_FILE).read_text(encoding="utf-8")
     return EvaluationSuite.from_dict(json.loads(text))
+
+
+@dataclass(frozen=True)
+class PaperSuiteMaze(SuiteMaze):
+    """A maze of the paper's suite: ``surprisingness`` is S in bits, as in the standard suite.
+
+    ``script_entropy`` is the score the paper's script ranked it by (its solution-path
+    entropy, in nats: :func:`amaze.evaluation.paper_suite.script_entropy`); ``traps``
+    its number of traps.
+    """
+
+    script_entropy: float
+    traps: int
+
+
+@dataclass(frozen=True)
+class PaperSuite(EvaluationSuite):
+    """The paper's evaluation suite: 18 mazes in the paper's 6 columns x 3 rows.
+
+    ``seed_offset`` and ``sample_size``: the script scored the mazes of seeds
+    ``seed_offset + j`` for ``j < sample_size`` of each family in ``families``
+    (``(name, family)`` pairs, the family without its seed).
+    """
+
+    seed_offset: int = 0
+    families: tuple[tuple[str, str], ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "seed_offset": self.seed_offset,
+            "sample_size": self.sample_size,
+            "families": [{"name": name, "family": family} for name, family in self.families],
+            "mazes": [
+                {
+                    "column": m.column,
+                    "row": m.row,
+                    "string": m.string,
+                    "surprisingness": m.surprisingness,
+                    "script_entropy": m.script_entropy,
+                    "traps": m.traps,
+                }
+                for m in self.mazes
+            ],
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PaperSuite:
+        try:
+            mazes = tuple(
+                PaperSuiteMaze(
+                    m["column"],
+                    m["row"],
+                    m["string"],
+                    float(m["surprisingness"]),
+                    float(m["script_entropy"]),
+                    int(m["traps"]),
+                )
+                for m in data["mazes"]
+            )
+            families = tuple((str(f["name"]), str(f["family"])) for f in data["families"])
+            return cls(
+                mazes=mazes,
+                sample_size=int(data["sample_size"]),
+                seed_offset=int(data["seed_offset"]),
+                families=families,
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise AmazeError(f"not a paper suite description: {error!r}") from None
+
+
+@lru_cache(maxsize=1)
+def paper_suite() -> PaperSuite:
+    """The shipped paper's evaluation suite (built by ``tools/make_paper_suite.py``)."""
+    text = resources.files("amaze").joinpath("data", _PAPER_DATA_FILE).read_text(encoding="utf-8")
+    return PaperSuite.from_dict(json.loads(text))

@@ -29,7 +29,7 @@ from typing import Any, ClassVar, TypeVar, Union
 
 from amaze.agents.robot import as_robot
 from amaze.errors import AmazeError, one_line
-from amaze.validation import MAX_JSON_DEPTH, check_integer, nests_within, parse_json
+from amaze.validation import MAX_JSON_DEPTH, check_integer, closest, nests_within, parse_json
 
 __all__ = [
     "MAX_CONFIG_BYTES",
@@ -98,9 +98,11 @@ def config_from_dict(
     """
     if not isinstance(data, Mapping):
         raise error(f"a {what} must be a JSON object, not {data!r}")
-    unknown = sorted(set(data) - {f.name for f in dataclasses.fields(cls)})  # type: ignore[arg-type]
+    known = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+    unknown = sorted(set(data) - set(known), key=str)
     if unknown:
-        raise error(f"unknown {what} key(s): {', '.join(repr(k) for k in unknown)}")
+        named = ", ".join(f"{key!r}{closest(key, known)}" for key in unknown)
+        raise error(f"unknown {what} key(s): {named}")
     return cls(**dict(data))
 
 
@@ -348,15 +350,17 @@ class RunConfig:
     ) -> dict[str, Any]:
         """The config's JSON object from ``--config FILE`` and the command-line options.
 
-        A file whose keys are all fields is a whole config; any other object
-        holds the options of :attr:`options_field`. Options given on the
-        command line win. The result is checked by :meth:`from_dict` later.
+        A file with any key that is a field is a whole config (its other keys
+        are then refused by name, with the field each one is closest to); a
+        file without one holds the options of :attr:`options_field`. Options
+        given on the command line win. The result is checked by
+        :meth:`from_dict` later.
         """
         data: dict[str, Any] = {}
         if config_file:
             loaded = cls.adapt_config_file(read_config_file(config_file, cls.error))
             names = {f.name for f in dataclasses.fields(cls)}
-            if set(loaded) <= names or cls.options_field is None:
+            if set(loaded) & names or cls.options_field is None:
                 data = loaded
             else:
                 data = {cls.options_field: loaded}

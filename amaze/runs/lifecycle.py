@@ -430,6 +430,16 @@ class Run(ABC):
         error = cls.config_class.error
         config_file = path / CONFIG_FILE
         if not (config_file.exists() or config_file.is_symlink()):
+            if not path.exists():
+                raise error(f"{str(path)!r} does not exist")
+            if not path.is_dir():
+                raise error(f"{str(path)!r} is not a folder")
+            seeds = sorted(p.name for p in path.glob("seed-*") if (p / CONFIG_FILE).exists())
+            if seeds:
+                raise error(
+                    f"{str(path)!r} holds replicates ({', '.join(seeds)}), each a run: resume"
+                    f" them one by one (--resume {str(path / seeds[0])!r}...)"
+                )
             raise error(f"{str(path)!r} holds no run (no {CONFIG_FILE})")
         data = read_json_object(config_file, error, "run config")
         known = {f.name for f in dataclasses.fields(cls.config_class)}

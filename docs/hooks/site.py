@@ -16,6 +16,11 @@
   * ``<!-- fields: evolution.cmaes:CMAESConfig -->``: the fields of a plain
     dataclass (name, type, default).
 
+  A default of ``None`` shows as the help's own "(default: ...)" words, moved
+  out of the help, or as a dash (a command's option: as nothing); never as
+  ``null``. Flags, keys and metavars are code that breaks between its words
+  only (:func:`_code`), never at a dash or a comma inside one.
+
 * **API reference**: one page per public module of the packages
   (``::: module``, rendered by mkdocstrings), listed in the navigation in
   place of the ``reference/api/index.md`` entry.
@@ -297,11 +302,37 @@ def _default(field: dataclasses.Field) -> Any:
     return dataclasses.MISSING
 
 
-def _json(value: Any) -> str:
+#: What a table shows for a default that is ``None`` and a help that gives none in words.
+NO_DEFAULT = "\u2014"
+#: A help's own default, "(default: ...)" or "...; default: ...)": moved to the default column.
+HELP_DEFAULT = re.compile(
+    r"\s*\(default: (?P<words>[^()]*)\)"  # a parenthesis of its own
+    r"|;\s*default: (?P<clause>[^()]*?)(?=\)|$)"  # the last clause, of the help or of a parenthesis
+)
+
+
+def _json(value: Any, help_default: str | None = None) -> str:
+    """A default as the table shows it: JSON in code; ``None`` as the help's own default or a dash.
+
+    A field whose default is ``None`` is set by the run (the help says how, in
+    its "(default: ...)" words) or is simply absent: JSON's ``null`` would
+    mean nothing to a reader.
+    """
     if value is dataclasses.MISSING:
         return "*required*"
+    if value is None:
+        return _cell(help_default) if help_default else NO_DEFAULT
     text = json.dumps(value, default=str)
     return f"`{text}`"
+
+
+def _help_default(text: str) -> tuple[str | None, str]:
+    """The default a help gives in words (or ``None``), and the help without it."""
+    match = HELP_DEFAULT.search(text)
+    if match is None:
+        return None, text
+    words = (match["words"] or match["clause"]).strip()
+    return words, (text[: match.start()] + text[match.end() :]).strip()
 
 
 def _cell(text: str) -> str:
@@ -309,16 +340,50 @@ def _cell(text: str) -> str:
     return text.replace("<", "&lt;").replace(">", "&gt;")
 
 
+#: Characters written as entities inside :func:`_code`: HTML's own, the table's ``|``, and
+#: Markdown's emphasis and code marks (the text between raw tags is still Markdown).
+CODE_ENTITIES = {c: f"&#{ord(c)};" for c in "&<>|_*`\\[]"}
+
+
+#: A list of choices longer than this may break after its commas (a short one stays whole).
+LONG_CHOICES = 24
+
+
+def _code(text: str) -> str:
+    """``text`` as inline code that wraps between its words only, never inside one.
+
+    A flag (``--budget-steps``), a key (``budget_steps``) or a metavar
+    (``A,B,...``) is one unbreakable piece (``white-space: nowrap``, see
+    ``docs/stylesheets/extra.css``), so that a narrow column breaks it at a
+    space, never at its dashes or commas. A long list of choices
+    (``{direct,interpolation,...}``) may break after its commas, each choice
+    kept whole.
+    """
+    words = []
+    for word in text.split():
+        if word.startswith("{") and word.endswith("}") and len(word) > LONG_CHOICES:
+            parts = [part + "," for part in word.split(",")]
+            parts[-1] = parts[-1][:-1]
+        else:
+            parts = [word]
+        words.append("<wbr>".join(f"<span>{_escaped(part)}</span>" for part in parts))
+    return f'<code class="unbroken">{" ".join(words)}</code>'
+
+
+def _escaped(text: str) -> str:
+    return "".join(CODE_ENTITIES.get(c, c) for c in text)
+
+
 def _flag(action: argparse.Action) -> str:
     """An option as ``--help`` shows it: ``--name METAVAR``, ``--x / --no-x``."""
     if isinstance(action, argparse.BooleanOptionalAction):
-        return " / ".join(f"`{flag}`" for flag in action.option_strings)
+        return " / ".join(_code(flag) for flag in action.option_strings)
     if action.nargs == 0:
-        return f"`{action.option_strings[0]}`"
+        return _code(action.option_strings[0])
     metavar = action.metavar or (
         "{" + ",".join(action.choices) + "}" if action.choices else action.dest.upper()
     )
-    return f"`{action.option_strings[0]} {metavar}`"
+    return _code(f"{action.option_strings[0]} {metavar}")
 
 
 def _flags(cls: type) -> dict[str, tuple[str, str]]:
@@ -339,22 +404,34 @@ def run_options_table(command: Any) -> str:
         raise ValueError(f"{command!r} has no group of run options")
     rows = ["| option | default | what it does |", "|---|---|---|"]
     for action in groups[0]._group_actions:
-        default = "" if action.default in (None, argparse.SUPPRESS) else f"`{action.default}`"
-        rows.append(f"| {_flag(action)} | {default} | {_cell(action.help or '')} |")
+        words, help_text = _help_default(action.help or "")
+        if action.default not in (None, argparse.SUPPRESS):
+            default, help_text = f"`{action.default}`", action.help or ""
+        else:  # no default: the help's words for what happens, else nothing
+            default = _cell(words or "")
+        rows.append(f"| {_flag(action)} | {default} | {_cell(help_text)} |")
     return "\n".join(rows) + "\n"
 
 
 def _what(field: dataclasses.Field) -> str:
     text = field.metadata.get("help", "")
+    if _default(field) is None:  # its default in words goes to the default column
+        text = _help_default(text)[1]
+    text = _cell(text)
     choices = field.metadata.get("choices")
     if choices:
-        text += "; one of " + ", ".join(f"`{c}`" for c in choices)
-    return _cell(text)
+        text += "; one of " + ", ".join(_code(str(c)) for c in choices)
+    return text
+
+
+def _field_default(field: dataclasses.Field) -> str:
+    """The default column of a field: its JSON, or for ``None`` its help's words or a dash."""
+    return _json(_default(field), _help_default(field.metadata.get("help", ""))[0])
 
 
 def _regimes(field: dataclasses.Field) -> str:
     regimes = field.metadata.get("regimes")
-    return "every regime" if regimes is None else ", ".join(f"`{r}`" for r in regimes)
+    return "every regime" if regimes is None else ", ".join(_code(r) for r in regimes)
 
 
 def options_table(cls: type) -> str:
@@ -368,19 +445,20 @@ def options_table(cls: type) -> str:
     for field in dataclasses.fields(cls):
         names.add(field.name)
         rows.append(
-            f"| {_option(field, flags)} | {_json(_default(field))} | {_regimes(field)}"
+            f"| {_option(field, flags)} | {_field_default(field)} | {_regimes(field)}"
             f" | {_what(field)} |"
         )
     for dest, (flag, help_text) in flags.items():
         if dest not in names:  # an option of the command that is not a field
-            rows.append(f"| {flag} | | every regime | {_cell(help_text)} |")
+            words, help_text = _help_default(help_text)
+            rows.append(f"| {flag} | {_cell(words or '')} | every regime | {_cell(help_text)} |")
     return "\n".join(rows) + "\n"
 
 
 def _option(field: dataclasses.Field, flags: dict[str, tuple[str, str]]) -> str:
     """A field's ``config.json`` key above its command-line form."""
-    flag = flags[field.name][0] if field.name in flags else "(in the `--config` file)"
-    return f"`{field.name}`<br>{flag}"
+    flag = flags[field.name][0] if field.name in flags else f"(in the {_code('--config')} file)"
+    return f"{_code(field.name)}<br>{flag}"
 
 
 def _trainers() -> list[tuple[type, str]]:
@@ -401,15 +479,15 @@ def regime_table(regime: str) -> str:
             if regimes is None or regime not in regimes or regime not in cls.supported_regimes:
                 continue
             entry = found.setdefault(field.name, (field, [], _option(field, flags)))
-            entry[1].append(f"`{command}`")
+            entry[1].append(_code(command))
     rows = [
         "| `config.json` key<br>command line | default | also acts in | trainers | what it does |",
         "|---|---|---|---|---|",
     ]
     for field, commands, option in found.values():
-        others = [f"`{r}`" for r in field.metadata["regimes"] if r != regime]
+        others = [_code(r) for r in field.metadata["regimes"] if r != regime]
         rows.append(
-            f"| {option} | {_json(_default(field))} | {', '.join(others) or '-'}"
+            f"| {option} | {_field_default(field)} | {', '.join(others) or NO_DEFAULT}"
             f" | {', '.join(commands)} | {_what(field)} |"
         )
     return "\n".join(rows) + "\n"
@@ -427,12 +505,12 @@ def regime_matrix() -> str:
             if field.metadata.get("regimes") is not None:
                 fields.setdefault(field.name, field)
     rows = [
-        "| option | " + " | ".join(f"`{r}`" for r in regimes) + " |",
+        "| option | " + " | ".join(_code(r) for r in regimes) + " |",
         "|---|" + "---|" * len(regimes),
     ]
     for name, field in fields.items():
         marks = ["yes" if r in field.metadata["regimes"] else "" for r in regimes]
-        rows.append(f"| `{name}` | " + " | ".join(marks) + " |")
+        rows.append(f"| {_code(name)} | " + " | ".join(marks) + " |")
     return "\n".join(rows) + "\n"
 
 
@@ -441,5 +519,5 @@ def fields_table(cls: type) -> str:
     rows = ["| key | type | default |", "|---|---|---|"]
     for field in dataclasses.fields(cls):
         kind = field.type if isinstance(field.type, str) else getattr(field.type, "__name__", "")
-        rows.append(f"| `{field.name}` | {_cell(str(kind))} | {_json(_default(field))} |")
+        rows.append(f"| {_code(field.name)} | {_cell(str(kind))} | {_json(_default(field))} |")
     return "\n".join(rows) + "\n"

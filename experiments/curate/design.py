@@ -49,8 +49,16 @@ class DesignError(AmazeError):
     """A maze the page sent that cannot be built: the message names the field or token."""
 
 
+def _missing(value: Any, what: str) -> None:
+    """A :class:`DesignError` saying ``what`` is missing when ``value`` is ``None`` (JSON's
+    ``null``, or no key): the page shows the message, and Python's ``None`` means nothing there."""
+    if value is None:
+        raise DesignError(f"{what} is missing")
+
+
 def parse_maze(text: Any) -> tuple[MazeSpec, list[str]]:
     """The spec of a maze string and the parser's warnings (tokens without effect)."""
+    _missing(text, "the maze string")
     if not isinstance(text, str):
         raise DesignError(f"maze string {text!r} is not text")
     if len(text) > MAX_STRING_LENGTH:
@@ -89,6 +97,7 @@ def strict_maze(text: Any) -> MazeSpec:
     bad tokens names them all (the parser stops at its first error: the
     token it names is set aside and the rest parsed again).
     """
+    _missing(text, "the maze string")
     if not isinstance(text, str):
         raise DesignError(f"maze string {text!r} is not text")
     tokens = text.strip().split("_")
@@ -150,6 +159,7 @@ def _whole(fields: Mapping[str, Any], name: str, **bounds: int) -> int:
     infinities and fractions are refused, naming the field and the value.
     """
     value = fields.get(name)
+    _missing(value, name)
     if isinstance(value, float) and value.is_integer():
         value = int(value)
     return check_integer(name, value, error=DesignError, **bounds)
@@ -157,6 +167,7 @@ def _whole(fields: Mapping[str, Any], name: str, **bounds: int) -> int:
 
 def _fraction(fields: Mapping[str, Any], name: str, label: str) -> float:
     """The finite number ``fields[name]`` in ]0, 1] (a lightness, a probability)."""
+    _missing(fields.get(name), label)
     return check_number(
         label, fields.get(name), minimum=0, strict_minimum=True, maximum=1, error=DesignError
     )
@@ -164,10 +175,12 @@ def _fraction(fields: Mapping[str, Any], name: str, label: str) -> float:
 
 def spec_from_fields(fields: Any, base: str | None = None) -> MazeSpec:
     """The spec the form's ``fields`` describe (``base``: the string whose other signs stay)."""
+    _missing(fields, "the maze form")
     if not isinstance(fields, Mapping):
         raise DesignError(f"maze fields {fields!r} are not an object")
     kept = parse_maze(base)[0] if base else MazeSpec(seed=0)
     start = fields.get("start")
+    _missing(start, "start")
     if start not in CORNERS:
         raise DesignError(f"start {start!r} is not one of {', '.join(CORNERS)}")
     changes: dict[str, Any] = {"start": StartLocation.from_shorthand(start)}
@@ -175,11 +188,13 @@ def spec_from_fields(fields: Any, base: str | None = None) -> MazeSpec:
         changes[name] = _whole(fields, name, minimum=MIN_SIZE, maximum=MAX_SIZE)
     changes["seed"] = _whole(fields, "seed", minimum=0)
     unicursive = fields.get("unicursive")
+    _missing(unicursive, "unicursive")
     if not isinstance(unicursive, bool):
         raise DesignError(f"unicursive {unicursive!r} is not true or false")
     changes["unicursive"] = unicursive
     for kind, (signs_field, probability_field) in SIGN_KINDS.items():
         on = fields.get(kind)
+        _missing(on, f"{kind} (on or off)")
         if not isinstance(on, bool):
             raise DesignError(f"{kind} {on!r} is not true or false")
         signs: tuple[Sign, ...] = getattr(kept, signs_field)

@@ -377,6 +377,8 @@ def _add_maze_routes(app: FastAPI, pictures: _Pictures, seeds: np.random.Generat
             text = spec.to_string()
         else:
             text = data.get("string")
+            if text is None:
+                raise DesignError("the maze string is missing")
             if not isinstance(text, str):
                 raise DesignError(f"maze string {text!r} is not text")
             strict_maze(text)  # every bad token named, those without effect too

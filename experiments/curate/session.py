@@ -366,6 +366,8 @@ class CurationSession:
         """
         with self._changed:
             question = self.question
+            if question_id is None:
+                raise AnswerError("the answer names no question")
             if question is None or question.id != question_id:
                 raise AnswerError(
                     f"question {question_id!r} is not the one waiting for an answer"
@@ -385,10 +387,11 @@ class CurationSession:
 
     @staticmethod
     def _checked_branch(value: Any, question: Question) -> int:
+        choices = ", ".join(map(str, question.choices))
+        if value is None:
+            raise AnswerError(f"the answer names no branch (one of {choices})")
         if isinstance(value, bool) or not isinstance(value, int) or value not in question.choices:
-            raise AnswerError(
-                f"branch {value!r} is not one of {', '.join(map(str, question.choices))}"
-            )
+            raise AnswerError(f"branch {value!r} is not one of {choices}")
         return value
 
     @staticmethod

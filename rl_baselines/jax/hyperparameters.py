@@ -38,6 +38,7 @@ from amaze.validation import (
     check_integer,
     check_layer_widths,
     check_number,
+    closest,
 )
 from rl_baselines import RLConfigError
 
@@ -274,7 +275,9 @@ def checked_hyperparameters(
     defaults = SB3_DEFAULTS[name]
     for key in hyperparameters:
         if key not in defaults:
-            raise RLConfigError(f"hyperparameter {key!r} is not one of {name.upper()}'s")
+            raise RLConfigError(
+                f"hyperparameter {key!r} is not one of {name.upper()}'s{closest(key, defaults)}"
+            )
     given = {**defaults, **hyperparameters}
     for key, why in _DEFAULT_ONLY.items():
         if given[key] != defaults[key] and not (key.endswith("kwargs") and given[key] == {}):

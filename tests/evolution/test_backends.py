@@ -138,7 +138,10 @@ def test_ray_missing_is_one_error_line(
 
 # -- Ray ------------------------------------------------------------------------------------
 
-ray_tests = pytest.mark.xdist_group("ray")
+
+def ray_tests(test):
+    """A Ray test: in the xdist worker of the session's cluster, and in the slow tier."""
+    return pytest.mark.slow(pytest.mark.xdist_group("ray")(test))
 
 
 @pytest.fixture

@@ -105,6 +105,7 @@ def test_mazes_csv_holds_every_member_ever(finished: Path) -> None:
     assert sum(int(r["admitted"]) for r in progress) == len(rows)
 
 
+@pytest.mark.slow
 def test_resume_after_a_kill_is_bit_identical(finished: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed"
     config = _write_config(tmp_path)

@@ -186,6 +186,7 @@ def test_neat_in_the_interpolation_regime(tmp_path: Path) -> None:
     assert _same(_final_champion(tmp_path / "again"), _final_champion(out))
 
 
+@pytest.mark.slow
 def test_a_person_at_the_terminal_curates_typing_mistakes_and_all(tmp_path: Path) -> None:
     """The human curator through amaze-evolve: bad typing is asked again, EOF stops cleanly."""
     out = tmp_path / "run"
@@ -227,6 +228,7 @@ def test_a_curriculum_on_a_seconds_budget(tmp_path: Path) -> None:
         assert json.loads(result.read_text())["env_steps"] > 0  # at least one generation
 
 
+@pytest.mark.slow
 def test_the_edens_regime_plays_open_ended_stages_until_its_budget_is_spent(
     tmp_path: Path,
 ) -> None:

@@ -106,6 +106,7 @@ def test_epochs_jsonl_records_every_alternative_and_the_pick(finished: Path) -> 
     assert epochs[1]["alternatives"][0]["controller"] == chosen
 
 
+@pytest.mark.slow
 def test_the_same_seed_gives_the_same_choices(finished: Path, tmp_path: Path) -> None:
     out = tmp_path / "again"
     assert main(["--config", str(_write_config(tmp_path)), "--out", str(out), "--no-progress"]) == 0
@@ -113,6 +114,7 @@ def test_the_same_seed_gives_the_same_choices(finished: Path, tmp_path: Path) ->
     assert timeless_progress(out) == timeless_progress(finished)
 
 
+@pytest.mark.slow
 def test_resume_after_a_kill_in_an_epoch_is_bit_identical(finished: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed"
     argv = [sys.executable, "-m", "evolution.cli", "--config", str(_write_config(tmp_path)),
@@ -171,6 +173,7 @@ def _strip_replayed(epochs: list[dict]) -> list[dict]:
     return [{k: v for k, v in e.items() if k != "replayed"} for e in epochs]
 
 
+@pytest.mark.slow
 def test_a_replay_follows_the_recorded_picks(finished: Path, tmp_path: Path) -> None:
     out = tmp_path / "replay"
     assert main(["--replay", str(finished), "--out", str(out), "--no-progress"]) == 0
@@ -183,6 +186,7 @@ def test_a_replay_follows_the_recorded_picks(finished: Path, tmp_path: Path) -> 
     assert all(np.array_equal(ours[0][k], theirs[0][k]) for k in ours[0])
 
 
+@pytest.mark.slow
 def test_a_replay_keeps_the_alternative_a_person_chose(finished: Path, tmp_path: Path) -> None:
     source = tmp_path / "edited"
     subprocess.run(["cp", "-r", str(finished), str(source)], check=True)

@@ -160,6 +160,7 @@ def _kill_when(process: subprocess.Popen, out: Path, generations: int) -> None:
     process.wait()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["cmaes", "neat"])
 def test_resume_after_a_kill_reaches_the_same_champion(tmp_path: Path, algo: str) -> None:
     config = _config(algo, max_generations=120, mazes=["M3_10x10_C1", "M4_8x8_C1"])
@@ -256,6 +257,7 @@ def test_a_run_of_the_other_trainer_is_named_with_its_command(
     assert "use amaze-train for it" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("sent", "status", "words"),
     [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")],

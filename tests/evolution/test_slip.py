@@ -144,6 +144,7 @@ def test_a_slipping_run_trains_on_slips_and_validates_without(
     assert fitness == pytest.approx(summary["champion_fitness"], abs=1e-12)
 
 
+@pytest.mark.slow
 def test_a_slipping_run_resumed_after_a_kill_is_bit_identical(
     slipping: Path, tmp_path: Path
 ) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -104,6 +105,16 @@ def canonical(text: str) -> str:
     return MazeSpec.from_string(text).to_string()
 
 
+#: What a value missing on the server would show as if the page printed it as it came.
+NOT_WORDS = re.compile(r"\b(?:None|null|undefined|NaN)\b")
+
+
+def no_missing_values(page) -> None:
+    """The page's text shows no ``None``, ``null``, ``undefined`` or ``NaN``: a dash at most."""
+    text = page.inner_text("body")
+    assert not NOT_WORDS.search(text), NOT_WORDS.findall(text)
+
+
 def wait_for_question(page, heading: str) -> None:
     page.wait_for_function(
         "text => document.querySelector('#view h2')?.textContent.startsWith(text)",
@@ -170,6 +181,7 @@ def test_a_whole_session_in_chromium_is_recorded_and_replays(browser, tmp_path: 
         wait_for_question(page, "Stage 1: choose the agent")
         wait_for_question(second, "Stage 1: choose the agent")
         wait_for_animations(page, 4)
+        no_missing_values(page)
         shoot(page, "03-choose-an-agent")
         page.set_viewport_size(NARROW)
         shoot(page, "04-choose-an-agent-narrow")
@@ -190,6 +202,7 @@ def test_a_whole_session_in_chromium_is_recorded_and_replays(browser, tmp_path: 
         page.click('.candidate[data-branch="0"] button.choose')
         page.locator("#final").wait_for(timeout=TIMEOUT_MS)
         page.locator("#curriculum-figure:not([hidden])").wait_for(timeout=TIMEOUT_MS)
+        no_missing_values(page)
         shoot(page, "07-final")
         page.set_viewport_size(NARROW)
         shoot(page, "08-final-narrow")

@@ -413,3 +413,62 @@ def test_no_input_gives_a_500(string: str, fields: dict, answer: object) -> None
     assert picture.status_code in (200, 400)
     response = post(_IDLE_CLIENT, "/api/answer", {"question": string, "answer": answer})
     assert response.status_code == 409  # nothing is asked
+
+
+# -- nothing of Python's on the page ------------------------------------------------------
+
+
+def test_no_none_reaches_the_page(live) -> None:
+    """Every answer the page shows, good or bad, is free of Python's ``None``.
+
+    A missing value is JSON's ``null`` (the page shows a dash) and a message
+    says what is missing in words: the page, the state at every step of a
+    session, the maze cards, the episodes, and the errors to requests whose
+    values are ``null``.
+    """
+    session, client = live
+    seen: list[tuple[str, str]] = [("GET /", client.get("/").text)]
+
+    def keep(where: str, response) -> dict:
+        seen.append((where, response.text))
+        return response.json()
+
+    fields = post(client, "/api/maze", {"string": "M4_10x10_C1_l.25_L.25"}).json()["fields"]
+    for key in fields:
+        keep(f"fields {key} null", post(client, "/api/maze", {"fields": {**fields, key: None}}))
+    for body in ({"string": None}, {}, {"fields": None}, {"string": "M4_5x5", "reference": None}):
+        keep(f"maze {body}", post(client, "/api/maze", body))
+    for body in (
+        {"question": None, "answer": 0},
+        {"answer": ["M4_5x5"]},
+        {"question": "generate-1", "answer": None},
+        {"question": "generate-1", "answer": [None, None]},
+    ):
+        keep(f"answer {body}", post(client, "/api/answer", body))
+    for _ in range(4):  # generate-1, select-2, generate-2, select-3: the toy session
+        assert session.wait_for("question", WAIT), session.error
+        asked = keep("state", client.get("/api/state"))["question"]
+        if asked["kind"] == "generate":
+            reference = asked["parent"]["string"]
+            for maze in asked["suggestions"]:
+                keep("card", post(client, "/api/maze", {"string": maze, "reference": reference}))
+            answer = asked["suggestions"]
+        else:
+            null = {"question": asked["id"], "answer": None}
+            keep("select null", post(client, "/api/answer", null))
+            stage = asked["stage"] - 1
+            for candidate in asked["candidates"]:
+                for result in candidate["results"]:
+                    path = f"/api/episode/{stage}/{candidate['branch']}/{result['index']}"
+                    keep(path, client.get(path))
+            answer = asked["candidates"][0]["branch"]
+        assert post(client, "/api/answer", {"question": asked["id"], "answer": answer}).json()
+    assert session.wait_for("finished", WAIT), session.error
+    assert keep("final state", client.get("/api/state"))["final"]["headline"]
+    shown = [(where, text) for where, text in seen if "None" in text]
+    assert not shown, shown
+    errors = [json.loads(text)["error"] for _, text in seen if text.startswith('{"error"')]
+    assert "the maze string is missing" in errors
+    assert "width is missing" in errors
+    assert "the answer names no question" in errors
+    assert any(e.startswith("the answer names no branch") for e in errors)

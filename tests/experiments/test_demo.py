@@ -11,6 +11,8 @@ import pytest
 
 from experiments import demo
 
+pytestmark = pytest.mark.slow
+
 #: Env steps of each evolution run in these tests: a generation or a few, a few seconds in all.
 TINY_STEPS = 200_000
 
@@ -115,3 +117,24 @@ def test_format_comparison_lines_up_columns() -> None:
 def test_steps_must_be_positive() -> None:
     with pytest.raises(SystemExit):
         demo.main(["--steps", "0"])
+
+
+def test_the_demo_prints_as_it_goes_into_a_pipe(tmp_path: Path) -> None:
+    """Piped to a file (``make demo > log``), the demo's lines come as they are printed:
+    its first line is there while the demo still runs (a full run takes a minute)."""
+    import subprocess
+    import sys
+
+    demo_process = subprocess.Popen(
+        [sys.executable, "-m", "experiments.demo", "--out", str(tmp_path / "out")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    try:
+        first = demo_process.stdout.readline()
+        assert first.startswith("amaze-evo demo:"), first
+        assert demo_process.poll() is None  # the line came before the end
+    finally:
+        demo_process.kill()
+        demo_process.wait()

@@ -74,6 +74,7 @@ def test_a_killed_study_resumes_without_redoing_finished_runs(tmp_path: Path) ->
     assert main(["run", str(tmp_path / "other.toml"), "--out", str(out)]) == 2
 
 
+@pytest.mark.slow
 def test_a_failed_run_is_reported_and_tried_again(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
 ) -> None:

@@ -427,6 +427,7 @@ def test_a_folder_locked_by_a_live_worker_is_refused_then_taken_when_it_is_gone(
     capsys.readouterr()
 
 
+@pytest.mark.slow
 def test_a_runner_killed_outright_takes_its_workers_with_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

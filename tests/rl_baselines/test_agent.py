@@ -268,9 +268,23 @@ def _zip_entries(change: Callable[[dict], object]) -> Callable[[Path, Path], Pat
     return lambda saved, target: _entries(saved, target, change)
 
 
-def _no_sidecar(saved: Path, target: Path) -> Path:
-    target.write_bytes(saved.read_bytes())
-    return target
+@pytest.mark.parametrize(("algo", "robot"), [("ppo", "DD"), ("a2c", "H5"), ("ppo", "CC5")])
+def test_a_zip_saved_by_sb3_itself_is_read_with_its_algorithm_and_robot(
+    tmp_path: Path, algo: str, robot: str
+) -> None:
+    """``model.save`` writes no metadata: the algorithm and robot come from the zip."""
+    from rl_baselines.vec_env import SB3VecEnv
+
+    images = robot != "DD"
+    env = SB3VecEnv(["M1_10x10_U"], robot, 4)
+    kwargs = {"policy_kwargs": small_cnn_kwargs()} if images else {}
+    model = algorithm_class(algo)("CnnPolicy" if images else "MlpPolicy", env, **kwargs)
+    model.save(tmp_path / "plain")
+    agent = SB3Agent.load(tmp_path / "plain.zip")
+    assert (agent.algo, agent.robot) == (algo, as_robot(robot))
+    observations = np.zeros((3, *env.observation_space.shape), env.observation_space.dtype)
+    expected, _ = model.predict(observations, deterministic=True)
+    np.testing.assert_array_equal(agent(observations).reshape(expected.shape), expected)
 
 
 def _truncated(saved: Path, target: Path) -> Path:
@@ -280,7 +294,6 @@ def _truncated(saved: Path, target: Path) -> Path:
 @pytest.mark.parametrize(
     ("make", "message"),
     [
-        (_no_sidecar, "metadata file .*bad.json' does not exist"),
         (_raw(b""), "not a readable zip archive"),
         (_truncated, "truncated"),
         (_raw(os.urandom(1000)), "not a readable zip archive"),

@@ -95,6 +95,7 @@ def test_a_resumed_run_goes_on_with_its_population(tmp_path: Path) -> None:
     assert json.loads((out / "summary.json").read_text())["rounds"] == len(rows)
 
 
+@pytest.mark.slow
 def test_a_coevolution_run_on_seconds_alone_stops_once_they_are_spent(tmp_path: Path) -> None:
     out = tmp_path / "run"
     seconds = [*ARGS[:4], "--budget-seconds", "3", *ARGS[6:]]

@@ -13,6 +13,7 @@ import amaze.runs.curriculum as curriculum_module
 from rl_baselines.cli import main
 from rl_baselines.curriculum import SB3CurriculumRun
 from rl_baselines.train import SB3Run, TrainConfig, train
+from tests.run_folders import FakeClock
 
 #: Two stages of two branches; A2C's default rollout (20 steps) fits the 150-step allowance.
 A2C = ["--algo", "a2c", "--regime", "edhucat", "--curator", "random", "--stages", "2"]
@@ -85,6 +86,18 @@ def test_an_edhucat_run_writes_the_curriculum_folder(a2c_run: Path) -> None:
     assert _learner_steps(out / "stages/stage-1/branch-1") == 140 + 220
 
 
+def _fake_clock(monkeypatch: pytest.MonkeyPatch) -> FakeClock:
+    """The runs' clocks, moving with the code's steps instead of the machine's speed."""
+    import amaze.runs.anytime
+    import amaze.runs.branches
+    import amaze.runs.decisions
+    import rl_baselines.learner
+
+    modules = (rl_baselines.learner, amaze.runs.branches, amaze.runs.anytime, amaze.runs.decisions)
+    return FakeClock().install(monkeypatch, *modules)
+
+
+@pytest.mark.slow
 def test_an_edhucat_run_on_seconds_alone_shares_them_between_stages_and_branches(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -92,6 +105,7 @@ def test_an_edhucat_run_on_seconds_alone_shares_them_between_stages_and_branches
 
     # never optimal: every branch trains until its seconds are spent
     monkeypatch.setattr(rl_baselines.learner, "OPTIMAL", 2.0)
+    _fake_clock(monkeypatch)
     out = tmp_path / "seconds"
     argv = [*A2C[: A2C.index("--budget-steps")], "--budget-seconds", "4"]
     argv += ["--eval-every", "200", "--no-progress", "--no-tensorboard", "--seed", "3"]
@@ -134,6 +148,7 @@ def test_ppo_fits_its_rollout_to_a_tiny_budget(tmp_path: Path) -> None:
     assert summary["env_steps"] <= 2000 and not (out / "tensorboard").exists()
 
 
+@pytest.mark.slow
 def test_the_edens_regime_runs_open_ended_epochs_of_the_papers_size(tmp_path: Path) -> None:
     config = TrainConfig.from_dict({"regime": "edens"})
     assert (config.stages, config.epochs, config.rehearsal) == (0, 10, 7)
@@ -190,6 +205,7 @@ def _killing_save(at: int):
     return killing_write
 
 
+@pytest.mark.slow
 def test_resume_after_a_kill_mid_stage_continues_the_branch(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -214,12 +230,14 @@ def test_resume_after_a_kill_mid_stage_continues_the_branch(
     assert [int(r["branches"]) for r in _rows(out)] == [1, 2, 3]
 
 
+@pytest.mark.slow
 def test_resume_mid_stage_of_a_seconds_run_continues_the_session(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import rl_baselines.learner
 
     monkeypatch.setattr(rl_baselines.learner, "OPTIMAL", 2.0)  # only the clock ends a branch
+    _fake_clock(monkeypatch)
     out = tmp_path / "run"
     argv = [*A2C[: A2C.index("--budget-steps")], "--budget-seconds", "3"]
     argv += ["--eval-every", "40", "--no-progress", "--no-tensorboard", "--seed", "4"]

@@ -37,6 +37,8 @@ from rl_baselines.jax_coevolution import JaxCoevolutionRun
 from rl_baselines.jax_run import JaxRun
 from rl_baselines.train import SB3Run, TrainConfig, resume
 
+pytestmark = pytest.mark.slow
+
 MAZE = "M1_5x5_C1"
 DIRECT = ["--framework", "jax", "--algo", "ppo", "--mazes", MAZE, "--eval-mazes", MAZE]
 DIRECT += ["--budget-steps", "640", "--eval-every", "128", "--evaluation-points", "4"]

@@ -91,7 +91,6 @@ CASES = {
     "champion truncated": ("checkpoints/champion.zip", truncate, "champion.zip"),
     "champion random bytes": ("checkpoints/champion.zip", write(RANDOM), "champion.zip"),
     "champion directory": ("checkpoints/champion.zip", directory, "champion.zip"),
-    "champion sidecar missing": ("checkpoints/champion.json", missing, "champion.json"),
     "champion sidecar wrong algo": ("checkpoints/champion.json", edit_json(algo="dqn"), "dqn"),
 }
 

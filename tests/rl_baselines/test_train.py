@@ -130,6 +130,7 @@ def test_run_folder_and_refusal_to_overwrite(tmp_path: Path) -> None:
         train(config, out)
 
 
+@pytest.mark.slow
 def test_kill_and_resume_counts_the_budget_once(tmp_path: Path) -> None:
     out = tmp_path / "run"
     budget = 12_000
@@ -253,6 +254,7 @@ QUICK_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 2}
 SLACK = 30
 
 
+@pytest.mark.slow
 def test_a_direct_run_on_seconds_alone_stops_at_its_budget(tmp_path: Path) -> None:
     out = tmp_path / "ppo"
     config = {
@@ -278,6 +280,7 @@ def test_a_direct_run_on_seconds_alone_stops_at_its_budget(tmp_path: Path) -> No
     assert steps[-1] == summary["env_steps"] == state["num_timesteps"]
 
 
+@pytest.mark.slow
 def test_amaze_train_budget_seconds_alone(tmp_path: Path) -> None:
     out = tmp_path / "a2c"
     argv = ["--algo", "a2c", "--budget-seconds", "2", "--eval-every", "2000"]
@@ -288,6 +291,7 @@ def test_amaze_train_budget_seconds_alone(tmp_path: Path) -> None:
     assert summary["env_steps"] > 0 and 2 <= summary["seconds"] < 2 + SLACK
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("budgets", "by_steps"),
     [({"budget_steps": 200, "budget_seconds": 600}, True), ({"budget_seconds": 2}, False)],
@@ -304,6 +308,7 @@ def test_with_both_budgets_the_first_reached_ends_the_run(
         assert 0 < summary["env_steps"] < 10**9 and 2 <= summary["seconds"] < 2 + SLACK
 
 
+@pytest.mark.slow
 def test_a_resumed_seconds_run_counts_the_seconds_already_spent(tmp_path: Path) -> None:
     out = tmp_path / "run"
     config = {"algo": "a2c", "budget_steps": None, "budget_seconds": 1.5, "eval_every": 1000}
@@ -320,6 +325,7 @@ def test_a_resumed_seconds_run_counts_the_seconds_already_spent(tmp_path: Path) 
     assert seconds == sorted(seconds) and seconds[-1] >= 3
 
 
+@pytest.mark.slow
 def test_a_run_folder_of_a_config_without_budget_seconds_resumes_as_before(
     tmp_path: Path,
 ) -> None:

@@ -30,14 +30,34 @@ import jax.numpy as jnp
 from gymnax.environments import environment, spaces
 
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
-from amaze.agents.robot import Robot
+from amaze.agents.robot import Robot, as_robot
 from amaze.envs.jax.env import MazeEnv, MazeState
 from amaze.envs.jax.params import MazeParams, compile_params, unstack
+from amaze.errors import AmazeError, OptionError
 from amaze.maze.maze import Maze
 from amaze.maze.spec import MazeSpec
 
 #: AMaze-v0's default maze, the default params of ``GymnaxMazeEnv()``.
 DEFAULT_MAZE = "M0_10x10_C1"
+
+
+def _refuse_swapped(robot: Any, maze: Any) -> None:
+    """A maze string given as the robot (``make`` takes ``(maze, robot)``, gymnax's
+    environments the robot first) is refused with the call that was meant."""
+    if not isinstance(robot, str) or not isinstance(maze, str):
+        return
+    try:
+        as_robot(robot)
+    except AmazeError:
+        try:
+            MazeSpec.from_string(robot)
+            as_robot(maze)
+        except AmazeError:
+            return
+        raise OptionError(
+            f"GymnaxMazeEnv({robot!r}, {maze!r}): the robot comes first (make() takes the"
+            f" maze first); did you mean GymnaxMazeEnv(robot={maze!r}, maze={robot!r})?"
+        ) from None
 
 
 class GymnaxMazeEnv(environment.Environment):
@@ -56,6 +76,7 @@ class GymnaxMazeEnv(environment.Environment):
         deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
     ) -> None:
         super().__init__()
+        _refuse_swapped(robot, maze)
         self.maze_env = MazeEnv(robot)
         self._default_params = unstack(
             compile_params([maze], self.maze_env.robot, deadline_factor=deadline_factor)

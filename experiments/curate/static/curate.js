@@ -27,10 +27,11 @@ function el(tag, attributes = {}, ...children) {
   return node;
 }
 
-const fixed = (value, digits = 2) =>
-  value === null || value === undefined || Number.isNaN(value) ? "–" : Number(value).toFixed(digits);
-const signed = (value, digits = 2) => (value >= 0 ? "+" : "") + fixed(value, digits);
-const count = (n) => (n >= 1e6 ? `${fixed(n / 1e6, 2)} M` : n >= 1e3 ? `${fixed(n / 1e3, 1)} k` : `${n}`);
+// A value the server sent as null (Python's None) shows as a dash, never as "null" or "None".
+const missing = (value) => value === null || value === undefined || Number.isNaN(value);
+const fixed = (value, digits = 2) => (missing(value) ? "–" : Number(value).toFixed(digits));
+const signed = (value, digits = 2) => (missing(value) ? "–" : (value >= 0 ? "+" : "") + fixed(value, digits));
+const count = (n) => (missing(n) ? "–" : n >= 1e6 ? `${fixed(n / 1e6, 2)} M` : n >= 1e3 ? `${fixed(n / 1e3, 1)} k` : `${n}`);
 
 function duration(seconds) {
   if (seconds === null || seconds === undefined) return "–";
@@ -127,7 +128,8 @@ function drawHeader() {
   const run = state.run;
   document.getElementById("run-description").textContent =
     `${run.algo.toUpperCase()}, robot ${run.robot}, ${run.stages} stages × ${run.branches} branches, ` +
-    `${count(run.budget_steps)} env steps, seed ${run.seed} · target ${run.target}` +
+    `${count(run.budget_steps)} env steps, seed ${run.seed}` +
+    (run.target ? ` · target ${run.target}` : "") +
     (run.advisor ? ` · advisor ${run.advisor}` : "");
   const phase = document.getElementById("phase");
   const names = {
@@ -302,7 +304,7 @@ function selectView(question) {
     el("p", { class: "muted" },
       final ? "The chosen agent is the run's result: it is then tested on the standard evaluation suite. "
         : "Its copies train on the mazes you design next. Each agent is shown on every maze of the stage. ",
-      "Success: the goal reached (a dot per start corner, green when reached); R̄: the paper's normalised reward, 1 on the shortest path; ",
+      "Success: the goal reached (a dot per start corner, green when reached); R̄: the paper's normalized reward, 1 on the shortest path; ",
       "the target's family: mazes of the target's kind none of the agents trained on. ",
       el("span", { id: "waiting" })),
     selectAdvice(question),
@@ -681,7 +683,7 @@ function finalView() {
     el("p", { text: "The final agent on the standard evaluation suite (18 mazes × 4 rotations), then in the 4 rotations of the target:" }),
     el("table", { class: "figures final-figures" },
       el("tr", {}, el("th", { text: "success rate" }), el("td", { id: "final-success", text: fixed(f.success_rate, 3) })),
-      el("tr", {}, el("th", { text: "normalised reward R̄" }), el("td", { text: fixed(f.normalized_reward, 3) })),
+      el("tr", {}, el("th", { text: "normalized reward R̄" }), el("td", { text: fixed(f.normalized_reward, 3) })),
       el("tr", {}, el("th", { text: "input recognition" }), el("td", { text: fixed(f.input_recognition, 3) })),
       el("tr", {}, el("th", { text: "env steps" }), el("td", { text: count(f.env_steps) })),
       el("tr", {}, el("th", { text: "training seconds" }), el("td", { text: fixed(f.seconds, 1) })),
@@ -727,7 +729,7 @@ function drawHistory() {
   const body = document.querySelector("#decisions tbody");
   body.replaceChildren(...history.decisions.map((d) => {
     const answer = d.kind === "select"
-      ? `branch ${d.choice}${d.forced ? " (the only one)" : ""}`
+      ? `branch ${missing(d.choice) ? "–" : d.choice}${d.forced ? " (the only one)" : ""}`
       : d.mazes.join("  ");
     // A select decision is recorded before the next stage; the page names the stage it chose in.
     const stage = d.kind === "select" ? d.stage - 1 : d.stage;

@@ -153,3 +153,13 @@ def test_jaxued_level_sampler_cycles_over_amaze_levels(tree_map_alias):
         assert np.isfinite(stored).all()
     weights = np.asarray(sampler.level_weights(buffer))
     assert weights.shape == (8,) and abs(weights.sum() - 1) < 1e-5
+
+
+def test_a_maze_given_where_the_robot_goes_is_named_with_the_call_meant():
+    """``make`` takes ``(maze, robot)``, ``GymnaxMazeEnv`` the robot first: a swap is named."""
+    from amaze.envs.jax.gymnax_env import GymnaxMazeEnv
+    from amaze.errors import OptionError
+
+    with pytest.raises(OptionError, match=r"did you mean GymnaxMazeEnv\(robot='DD', maze='M1"):
+        GymnaxMazeEnv("M1_5x5_U", "DD")
+    assert GymnaxMazeEnv(robot="DD", maze="M1_5x5_U").maze_env.robot.to_string() == "DD"

@@ -94,6 +94,7 @@ def test_rows_are_min_median_max_with_ties_broken_by_seed():
     assert [m.row for m in rows] == list(ROWS)
 
 
+@pytest.mark.slow
 def test_small_suite_is_deterministic_across_processes():
     code = (
         "import json; from amaze.evaluation.suite import build_suite;"

@@ -478,6 +478,7 @@ def open_ended(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_an_open_ended_run_plays_epochs_until_its_budget_is_spent(open_ended: Path) -> None:
     summary = json.loads((open_ended / "summary.json").read_text())
     # Each branch may spend an epoch, 6000 // (2 * 100) = 30 steps: stage 0 trains one
@@ -515,6 +516,7 @@ def test_an_open_ended_branch_rehearses_its_lineages_mazes(open_ended: Path) -> 
                for f in _branches(open_ended))  # fmt: skip
 
 
+@pytest.mark.slow
 def test_an_open_ended_run_resumes_and_replays_to_the_same_curriculum(
     tmp_path: Path, open_ended: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

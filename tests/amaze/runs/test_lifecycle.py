@@ -171,6 +171,19 @@ def test_bad_config_fails_before_anything_is_written(tmp_path: Path) -> None:
     assert not (tmp_path / "run").exists()
 
 
+def test_resume_says_what_a_folder_without_a_run_is(tmp_path: Path) -> None:
+    with pytest.raises(CountingError, match=r"'.*missing' does not exist"):
+        CountingRun.resume(tmp_path / "missing")
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(CountingError, match="is not a folder"):
+        CountingRun.resume(tmp_path / "file")
+    for seed in (3, 4):
+        (tmp_path / "replicates" / f"seed-{seed}").mkdir(parents=True)
+        (tmp_path / "replicates" / f"seed-{seed}" / "config.json").write_text("{}")
+    with pytest.raises(CountingError, match=r"holds replicates \(seed-3, seed-4\).*seed-3"):
+        CountingRun.resume(tmp_path / "replicates")
+
+
 @pytest.mark.parametrize(
     ("content", "message"),
     [
@@ -244,7 +257,7 @@ def test_a_config_file_is_a_whole_config_or_the_options(tmp_path: Path) -> None:
         (["--steps", "0", "--out", "{out}"], "steps 0"),
         (["--nope"], "unrecognized arguments: --nope"),
         ([], "--out is required"),
-        (["--resume", "{out}"], "holds no run"),
+        (["--resume", "{out}"], "does not exist"),
         (["--config", "{missing}", "--out", "{out}"], "does not exist"),
         (["--replicates", "0", "--out", "{out}"], "--replicates 0"),
     ],

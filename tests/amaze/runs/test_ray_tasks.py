@@ -14,7 +14,7 @@ from amaze.runs.ray_tasks import LOST_STATUS, TASK_RETRIES, RayLauncher
 from amaze.runs.replicates import replicate_command
 from tests.processes import process_running, wait_until
 
-pytestmark = pytest.mark.xdist_group("ray")
+pytestmark = [pytest.mark.xdist_group("ray"), pytest.mark.slow]
 
 #: A tiny CMA-ES run of amaze-evolve (about 3 s, most of it start-up).
 EVOLVE = ["--algo", "cmaes", "--mazes", "M1_5x5_C1", "--budget-steps", "20000"]

@@ -15,6 +15,7 @@ from amaze.runs.replicates import (
     Replicate,
     plan_replicates,
     replicate_command,
+    replicates_table,
     run_replicates,
     strip_options,
 )
@@ -79,10 +80,36 @@ def test_a_replicate_trains_in_the_folder_that_holds_its_log(tmp_path: Path, cap
     assert "\n1 generations" in log  # its closing headline
     printed = capsys.readouterr().out.splitlines()
     summary = json.loads((tmp_path / "seed-3" / "summary.json").read_text())
-    assert printed[-5] == "seed 3: done"
-    assert printed[-4].split() == ["replicate", "success", "R̄", "inputs", "env", "steps"]
-    assert printed[-3].split()[:3] == ["seed", "3", f"{summary['success_rate']:.3f}"]
-    assert [line.split()[0] for line in printed[-2:]] == ["median", "IQR"]
+    assert printed[-7] == "seed 3: done"
+    assert printed[-6].split() == ["replicate", "success", "R̄", "inputs", "env", "steps"]
+    assert printed[-5].split()[:3] == ["seed", "3", f"{summary['success_rate']:.3f}"]
+    assert [line.split()[0] for line in printed[-4:]] == ["min", "max", "median", "IQR"]
+
+
+def test_the_closing_table_gives_min_max_median_and_iqr(tmp_path: Path) -> None:
+    """Max and median sit beside the paper's Table 3; median and IQR stay the last lines."""
+    plan = []
+    for seed, success in zip(range(5), (0.2, 0.5, 0.3, 0.9, 0.4), strict=True):
+        out = tmp_path / f"seed-{seed}"
+        out.mkdir()
+        summary = {
+            "success_rate": success,
+            "normalized_reward": -success,
+            "input_recognition": None,  # not measured: n/a, left out of the statistics
+            "env_steps": 1000 * (seed + 1),
+        }
+        (out / "summary.json").write_text(json.dumps(summary))
+        plan.append(Replicate(seed, out, []))
+    plan.append(Replicate(5, tmp_path / "seed-5", []))  # failed: no summary
+    lines = replicates_table(plan).splitlines()
+    assert lines[0].split() == ["replicate", "success", "R̄", "inputs", "env", "steps"]
+    assert lines[6].split() == ["seed", "5", "no", "summary", "(see", "its", "log.txt)"]
+    rows = {line.split()[0]: line.split()[1:] for line in lines[7:]}
+    assert list(rows) == ["min", "max", "median", "IQR"]
+    assert rows["min"] == ["0.200", "-0.900", "n/a", "1,000"]
+    assert rows["max"] == ["0.900", "-0.200", "n/a", "5,000"]
+    assert rows["median"] == ["0.400", "-0.400", "n/a", "3,000"]
+    assert rows["IQR"] == ["0.200", "0.200", "n/a", "2,000"]
 
 
 def _toy_command(**fields) -> TrainingCommand:

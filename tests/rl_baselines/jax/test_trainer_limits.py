@@ -215,6 +215,7 @@ def _nan_params(path: Path) -> None:
         np.savez(stream, **arrays)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "damage", "words"),
     [

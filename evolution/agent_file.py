@@ -256,8 +256,15 @@ def _checked_metadata(raw: np.ndarray, where: str) -> dict[str, Any]:
 def load_agent(path: str | os.PathLike) -> Any:
     """The policy saved in ``path`` (one individual; it has a ``robot`` attribute).
 
-    Fixed networks (``mlp``) give a :class:`~evolution.networks.NetworkPopulation`
-    of one; NEAT-like genomes (``neat``) are built by ``evolution.neat.policy_from_arrays``.
+    Args:
+        path: an agent file written by :func:`save_agent` (``agent.npz`` of a run).
+
+    Returns:
+        A :class:`~evolution.networks.NetworkPopulation` of one for a fixed network
+            (``mlp``), the compiled population of one of a NEAT-like genome (``neat``).
+
+    Raises:
+        AgentFileError: the file is missing, damaged or hostile, named in the message.
     """
     arrays, metadata = read_agent(path)
     return policy_from_agent_arrays(arrays, metadata, where=f"agent file '{path}'")

@@ -324,7 +324,15 @@ def plot_progress(csv_path: Path, png_path: Path, config: EvolveConfig) -> None:
 def evolve(
     config: EvolveConfig | Mapping[str, Any], out: str | os.PathLike, *, progress: str = "off"
 ) -> RunResult:
-    """Run a fresh evolution as ``config`` says and write the run folder ``out``."""
+    """Run a fresh evolution as ``config`` says and write the run folder ``out``.
+
+    Args:
+        config: the run's config (the keys of ``amaze-evolve``'s ``config.json``).
+        out: the run folder to create (new or empty).
+        progress: ``bar``, ``lines`` or ``off``.
+
+    Returns:
+        The run's result (its folder, summary, headline and outputs)."""
     return EvolutionRun.fresh(config, out, progress=progress)
 
 

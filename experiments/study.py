@@ -257,7 +257,19 @@ def read_study_text(path: Path, source: str) -> str:
 
 
 def parse_study(text: str, source: str = "study") -> Study:
-    """The study in the TOML ``text``; ``source`` names it in error messages."""
+    """The study in the TOML ``text``.
+
+    Args:
+        text: the study file's text (``amaze-experiment run`` takes such files).
+        source: what names the text in error messages.
+
+    Returns:
+        The study, its planned runs (trainers x algorithms x budgets x seeds) and
+            comparisons.
+
+    Raises:
+        StudyError: a key, value or file the study cannot hold, named.
+    """
 
     def bad(message: str) -> StudyError:
         return StudyError(f"{source}: {message}")

@@ -172,24 +172,25 @@ def load_sb3_model(
     device: torch.device | str = "cpu",
     **kwargs: Any,
 ) -> BaseAlgorithm:
-    """The SB3 model saved at ``path`` (``algo``, for ``robot``), loaded without unpickling.
+    """The SB3 model saved at ``path`` (``algo``, for ``robot``), loaded as data.
 
-    SB3's ``load`` would unpickle the pickled values of the zip's ``data``
-    entry, which can run arbitrary code (see the module docstring): each one
-    is rebuilt instead (the policy class and the spaces from ``robot``; the
-    policy's keyword arguments from their JSON copy, classes from a fixed
-    list; the learning-rate and clip-range schedules from the constants
-    stored in JSON; training state that SB3 rebuilds, such as the last
-    observations and the episode-statistics buffers, as nothing), and a file
-    with any other pickled value is refused. ``env``, ``device`` and
-    ``kwargs`` go to SB3's ``load`` (``kwargs`` set attributes of the model,
-    e.g. ``tensorboard_log``; one named like a pickled value replaces it).
+    SB3's own ``load`` would unpickle the pickled values of the zip's ``data``
+    entry, copy every key onto the model and hand a stored ``env`` to
+    ``gym.make`` (see the module docstring). Here every key of ``data`` goes
+    through :func:`~rl_baselines.sb3_file.checked_data` (an allow-list of the
+    keys A2C and PPO write, with their types and bounds) and reaches SB3 as a
+    ``custom_objects`` value: the policy class and the spaces from ``robot``,
+    the policy's keyword arguments from their JSON copy (classes from a fixed
+    list), the schedules from the stored constants, training state that SB3
+    rebuilds as nothing. ``env``, ``device`` and ``kwargs`` go to SB3's
+    ``load`` (``kwargs`` set attributes of the model, e.g. ``tensorboard_log``).
     The optimizer's state is loaded too, so training can continue.
 
     Raises :class:`~rl_baselines.RLConfigError` naming the file when it is
-    missing, not a zip, has no ``data``, holds a value that cannot be rebuilt,
-    has a ``.pth`` entry that is not plain tensors, or does not fit the
-    algorithm, the robot or ``env``.
+    missing, not a zip, has no ``data``, holds a key or value that is refused,
+    has an entry SB3 does not write or a ``.pth`` entry that is not plain
+    tensors, declares more than the bounds, or does not fit the algorithm,
+    the robot or ``env``.
     """
     path = Path(path)
     source = f"SB3 model '{path}'"
@@ -251,10 +252,20 @@ class SB3Agent:
 
     @classmethod
     def load(cls, path: str | os.PathLike, device: str = "cpu") -> SB3Agent:
-        """Load an agent written by :meth:`save`, without unpickling (:func:`load_sb3_model`).
+        """Load an agent written by :meth:`save` (or a zip SB3's ``save`` wrote), as data.
 
-        A missing, unreadable or malformed zip or metadata file raises
-        :class:`~rl_baselines.RLConfigError` naming it.
+        Args:
+            path: the agent's zip (``.zip`` appended when missing); the JSON
+                file beside it gives the robot and the algorithm, which a zip
+                without it gives itself (:func:`rl_baselines.sb3_file.stored_metadata`).
+            device: torch's device for the model.
+
+        Returns:
+            The agent, a policy of the shared protocol (``agent(observations)``).
+
+        Raises:
+            RLConfigError: the file is missing, unreadable, malformed or hostile
+                (:func:`load_sb3_model`), named in the message.
         """
         zip_path, json_path = agent_paths(path)
         algo, robot = read_metadata(zip_path, json_path)

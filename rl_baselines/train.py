@@ -299,8 +299,16 @@ def train(
 ) -> RunResult:
     """Train a fresh agent as ``config`` says and write the run folder ``out``.
 
-    ``progress`` shows it (``bar``, ``lines`` or ``off``). Every regime: the curriculum ones
-    run as :class:`~rl_baselines.curriculum.SB3CurriculumRun`.
+    Every regime: the curriculum ones run as
+    :class:`~rl_baselines.curriculum.SB3CurriculumRun`.
+
+    Args:
+        config: the run's config (the keys of ``amaze-train``'s ``config.json``).
+        out: the run folder to create (new or empty).
+        progress: ``bar``, ``lines`` or ``off``.
+
+    Returns:
+        The run's result (its folder, summary, headline and outputs).
     """
     return SB3Run.fresh(config, out, progress=progress)
 

@@ -388,9 +388,21 @@ def evaluate(
 ) -> EvaluationReport:
     """Score ``policy`` on the standard suite (or on ``mazes``); see the module docstring.
 
-    ``rotations`` is 1 (each maze as given) or 4 (each in its four rotations);
-    by default 4 for the suite (72 episodes) and 1 for ``mazes``. The report's
-    ``rotations`` records the count played.
+    Args:
+        policy: a policy of :mod:`amaze.evaluation.policy`: a callable mapping a
+            batch of observations to a batch of actions (saved agents, controllers,
+            populations of one).
+        robot: the robot the policy drives.
+        mazes: the mazes to play; the standard suite's 18 when ``None``.
+        rotations: 1 (each maze as given) or 4 (each in its four rotations); by
+            default 4 for the suite (72 episodes) and 1 for ``mazes``.
+        deadline_factor: episodes end after ``deadline_factor`` times the
+            solution's length.
+        inputs: also run the input-recognition test.
+
+    Returns:
+        The report of per-episode results, success rate, R̄ and input
+            recognition (``summary()`` gives the figures of ``summary.json``).
     """
     key = None if mazes is None else tuple(_maze_key(m) for m in mazes)
     played = check_rotations(rotations, mazes is None)

@@ -104,8 +104,18 @@ def make(
     """``(env, params)`` of one maze, as ``gymnax.make`` gives them.
 
     The reward is AMaze-v0's (the reference's per-step reward) and the deadline
-    ``ceil(deadline_factor * l)`` steps. ``max_cells`` / ``max_codes`` pad the
-    params (see :mod:`amaze.envs.jax.params`), so that they stack with others.
+    ``ceil(deadline_factor * l)`` steps.
+
+    Args:
+        maze: the maze (a string such as ``"M4_10x10_C1"``, a spec or a maze).
+        robot: the robot (``DD`` or a hybrid one such as ``H15``).
+        deadline_factor: episodes end after ``ceil(deadline_factor * l)`` steps.
+        max_cells: pad the params to this many cells (see :mod:`amaze.envs.jax.params`),
+            so that they stack with other mazes' params.
+        max_codes: pad the params' sign codes likewise.
+
+    Returns:
+        The environment (``reset``/``step``, jit- and vmap-able) and the maze's params.
     """
     if isinstance(maze, Sequence) and not isinstance(maze, str):
         raise OptionError(f"make takes one maze, not {type(maze).__name__}: use make_batch")

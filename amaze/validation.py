@@ -25,10 +25,12 @@ __all__ = [
     "MAX_HIDDEN_LAYERS",
     "MAX_JSON_DEPTH",
     "MAX_LAYER_WIDTH",
+    "MAX_ROLLOUT_BYTES",
     "MAX_ROLLOUT_SAMPLES",
     "check_integer",
     "check_layer_widths",
     "check_number",
+    "check_rollout_size",
     "closest",
     "nests_within",
     "parse_json",
@@ -48,6 +50,9 @@ MAX_HIDDEN_LAYERS = 16
 #: before it exists. Far above common setups (SB3's default is 2,048 x 4);
 #: about 1 GiB of observations for DD and H15 robots.
 MAX_ROLLOUT_SAMPLES = 1 << 22
+#: The most bytes of observations one rollout may hold (as float32s, as SB3's
+#: buffer stores them): 2**22 samples of DD or H15, fewer of wider retinas.
+MAX_ROLLOUT_BYTES = 1 << 32
 
 
 def _integer_kind(minimum: int | None, maximum: int | None) -> str:
@@ -165,6 +170,38 @@ def check_layer_widths(
         check_integer(f"{name} layer", width, minimum=1, maximum=MAX_LAYER_WIDTH, error=error)
         for width in value
     )
+
+
+def check_rollout_size(
+    n_steps: int, n_envs: int, observation_size: int, *, error: type[ValueError] = ValueError
+) -> int:
+    """The samples of a rollout (``n_steps * n_envs``), within the bounds; ``error`` otherwise.
+
+    At most :data:`MAX_ROLLOUT_SAMPLES` samples, and at most
+    :data:`MAX_ROLLOUT_BYTES` of observations of ``observation_size`` numbers
+    each (stored as float32): what a rollout buffer allocates, bounded before
+    it is built.
+
+    >>> check_rollout_size(2048, 4, 8)
+    8192
+    >>> check_rollout_size(4096, 256, 65 * 65)
+    Traceback (most recent call last):
+    ValueError: a rollout of n_steps 4096 x n_envs 256 = 1,048,576 samples of 4225 inputs ...
+    """
+    samples = n_steps * n_envs
+    if samples > MAX_ROLLOUT_SAMPLES:
+        raise error(
+            f"a rollout of n_steps {n_steps} x n_envs {n_envs} = {samples:,} samples is more"
+            f" than {MAX_ROLLOUT_SAMPLES:,}"
+        )
+    needed = samples * observation_size * 4
+    if needed > MAX_ROLLOUT_BYTES:
+        raise error(
+            f"a rollout of n_steps {n_steps} x n_envs {n_envs} = {samples:,} samples of"
+            f" {observation_size} inputs needs {needed:,} bytes of observations, more than"
+            f" {MAX_ROLLOUT_BYTES:,}"
+        )
+    return samples
 
 
 def parse_json(

@@ -33,6 +33,7 @@ from amaze.validation import (
     check_integer,
     check_layer_widths,
     check_number,
+    check_rollout_size,
     parse_json,
 )
 from rl_baselines import RLConfigError
@@ -488,12 +489,11 @@ def checked_data(
                 f"{source}: data {key!r}{kind} is not one that {algo.upper()} saves; the file"
                 " is refused rather than read"
             )
-    samples = custom.get("n_steps", 1) * custom.get("n_envs", 1)
-    if samples > MAX_ROLLOUT_SAMPLES:
-        raise RLConfigError(
-            f"{source}: its rollout of n_steps {custom.get('n_steps')} x n_envs"
-            f" {custom.get('n_envs')} = {samples:,} samples is more than {MAX_ROLLOUT_SAMPLES:,}"
-        )
+    inputs = math.prod(observation_space(robot).shape)
+    try:
+        check_rollout_size(custom.get("n_steps", 1), custom.get("n_envs", 1), inputs)
+    except ValueError as error:
+        raise RLConfigError(f"{source}: {error}") from None
     return custom
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from amaze.agents.robot import as_robot
 from amaze.cli.main import main as amaze_main
 from tests.run_folders import edit_sb3_data, load_tool
 
@@ -323,3 +324,18 @@ def test_the_torch_free_reader_and_the_loader_know_the_same_classes() -> None:
     from rl_baselines.sb3_file import POLICY_KWARGS_CLASS_NAMES
 
     assert set(_POLICY_KWARGS_CLASSES) == POLICY_KWARGS_CLASS_NAMES
+
+
+def test_a_rollout_too_large_for_its_robots_images_is_refused_by_both_frameworks() -> None:
+    """2**20 samples pass the sample bound, but not as 65 x 65 images (17 GB of floats)."""
+    from rl_baselines import RLConfigError
+    from rl_baselines.jax.trainer import JaxTrainer
+    from rl_baselines.sb3_file import checked_data
+
+    with pytest.raises(RLConfigError, match="bytes of observations"):
+        JaxTrainer("ppo", "H65", ["M1_20x20_U"], {"n_steps": 4096}, n_envs=256)
+    schedule = {":type:": "x", ":serialized:": "", "value_schedule": "ConstantSchedule(val=0.2)"}
+    data = {"n_steps": 4096, "n_envs": 256, "clip_range": schedule}
+    with pytest.raises(RLConfigError, match="bytes of observations"):
+        checked_data(data, "ppo", as_robot("H65"), {}, "model 'x.zip'")
+    assert checked_data(data, "ppo", as_robot("DD"), {}, "model 'x.zip'")["n_envs"] == 256

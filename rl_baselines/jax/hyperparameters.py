@@ -32,6 +32,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from amaze.agents.robot import Robot
 from amaze.validation import (
     MAX_LAYER_WIDTH,
     MAX_ROLLOUT_SAMPLES,
@@ -49,6 +50,7 @@ __all__ = [
     "SB3_DEFAULTS",
     "Hyperparameters",
     "checked_hyperparameters",
+    "observation_size",
 ]
 
 #: The most samples (``n_steps * n_envs``) one rollout may hold, and the largest
@@ -345,3 +347,8 @@ def checked_hyperparameters(
         net_vf=net_vf,
         features_dim=features_dim,
     )
+
+
+def observation_size(robot: Robot) -> int:
+    """The numbers of one observation of ``robot`` (8 inputs, or its retina's pixels)."""
+    return 8 if robot.discrete_inputs else robot.vision * robot.vision

@@ -33,9 +33,13 @@ from amaze.archives import open_npz, read_npz
 from amaze.errors import AmazeError
 from amaze.runs.config import read_json_object
 from amaze.runs.folder import settled_folder, write_folder, write_json
-from amaze.validation import check_integer
+from amaze.validation import check_integer, check_rollout_size
 from rl_baselines import RLConfigError
-from rl_baselines.jax.hyperparameters import MAX_CHUNK_STEPS, checked_hyperparameters
+from rl_baselines.jax.hyperparameters import (
+    MAX_CHUNK_STEPS,
+    checked_hyperparameters,
+    observation_size,
+)
 
 __all__ = [
     "SETTINGS_FILE",
@@ -106,9 +110,10 @@ def check_saved(folder: str | os.PathLike) -> None:
     """Check a saved trainer as far as it can be without JAX; :class:`RLConfigError` otherwise.
 
     The settings are checked as the trainer checks them (algorithm, robot,
-    hyperparameters with their network and rollout bounds, ``n_envs``,
-    ``chunk_steps``), ``state.npz`` must be a zip archive of ``.npy``
-    entries within the absolute bounds of :mod:`amaze.archives`, and its
+    hyperparameters with their network and rollout bounds, the rollout's
+    observations, ``n_envs``, ``chunk_steps``), ``state.npz`` must be a zip
+    archive of ``.npy`` entries within the absolute bounds of
+    :mod:`amaze.archives`, and its
     parameters and optimizer moments hold values training can go on from
     (:func:`check_state_values`). Each array's shape against the trainer's is
     checked when it is loaded (:func:`~rl_baselines.jax.trainer.load_trainer`).
@@ -123,12 +128,13 @@ def check_saved(folder: str | os.PathLike) -> None:
     if not isinstance(hyperparameters, dict):
         raise RLConfigError(f"{where}: hyperparameters {hyperparameters!r} is not an object")
     try:
-        checked_hyperparameters(
+        hp = checked_hyperparameters(
             settings.get("algo"),
             hyperparameters,
             robot_images=not robot.discrete_inputs,
             n_envs=settings.get("n_envs", 4),
         )
+        check_rollout_size(hp.n_steps, hp.n_envs, observation_size(robot), error=RLConfigError)
         check_integer(
             "chunk_steps",
             settings.get("chunk_steps", 1),

@@ -38,12 +38,13 @@ from amaze.envs.jax import MazeEnv, MazeParams, make_batch
 from amaze.errors import AmazeError
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
-from amaze.validation import check_integer
+from amaze.validation import check_integer, check_rollout_size
 from rl_baselines import RLConfigError
 from rl_baselines.jax.hyperparameters import (
     MAX_CHUNK_STEPS,
     Hyperparameters,
     checked_hyperparameters,
+    observation_size,
 )
 from rl_baselines.jax.networks import (
     Params,
@@ -313,6 +314,7 @@ class JaxTrainer:
         hp = checked_hyperparameters(
             algo, hyperparameters or {}, robot_images=not parsed.discrete_inputs, n_envs=n_envs
         )
+        check_rollout_size(hp.n_steps, hp.n_envs, observation_size(parsed), error=RLConfigError)
         spec = PolicySpec(parsed.to_string(), hp.net_pi, hp.net_vf, hp.features_dim)
         self.static = Static(env, spec, hp)
         self.seed = check_integer("seed", seed, minimum=0, maximum=2**32 - 1, error=RLConfigError)

@@ -8,7 +8,8 @@ stable-baselines3, which are imported here and nowhere in :mod:`amaze`.
 * :mod:`rl_baselines.networks`: a small CNN features extractor for 15x15 images;
 * :mod:`rl_baselines.agent`: :class:`SB3Agent`, a trained model as a policy of the
   shared protocol (``amaze.evaluation.policy``), with save/load; SB3 zips loaded
-  without unpickling (``load_sb3_model``);
+  as data (``load_sb3_model``: :mod:`rl_baselines.sb3_file` checks them without
+  torch, :mod:`rl_baselines.agent_loader` is the commands' ``zip`` loader);
 * :mod:`rl_baselines.config`: :class:`TrainConfig` (the run's config) and the rollouts
   fitted to a curriculum's small budgets;
 * :mod:`rl_baselines.learner`: :class:`SB3Learner`, an SB3 model as a curriculum learner

@@ -300,7 +300,7 @@ def check_hyperparameters(algo: str, hyperparameters: dict[str, Any]) -> None:
         what = f"hyperparameter {name!r}"
         if name in _RESERVED:
             raise RLConfigError(f"{what} is set by the trainer")
-        if name not in defaults or name == "self":
+        if name not in defaults:
             raise RLConfigError(f"{what} is not one of {algo.upper()}'s{closest(name, defaults)}")
         default = defaults[name]
         if name.endswith("_class"):
@@ -329,11 +329,10 @@ def used_hyperparameters(config: TrainConfig) -> dict[str, Any]:
     Filling them in twice gives the same: a curriculum's fitted rollout,
     recorded, is then the config's own.
     """
-    skipped = {"self", "policy", "env", *_RESERVED}
     used = {
         name: value
         for name, value in sb3_defaults(config.algo).items()
-        if name not in skipped and not name.endswith("_class")
+        if not name.endswith("_class")
     }
     used.update(config.hyperparameters)
     if config.is_curriculum:

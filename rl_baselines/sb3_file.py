@@ -40,7 +40,6 @@ from rl_baselines import RLConfigError
 
 __all__ = [
     "ALGORITHM_NAMES",
-    "MAX_ROLLOUT_SAMPLES",
     "METADATA_FORMAT",
     "POLICY_KWARGS_CLASS_NAMES",
     "REBUILD",

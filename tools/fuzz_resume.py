@@ -52,6 +52,9 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # tools/ is not a package
+from hostile_files import npy_header
+
 #: Curriculum runs: 2 stages x 2 branches with the random curator.
 CURRICULUM = {
     "regime": "edhucat",
@@ -217,9 +220,7 @@ def _npz_huge_array(marker: Path, original: bytes) -> bytes:
     arrays = [name for name in entries or {} if name.endswith(".npy")]
     if not arrays:
         return original
-    text = "{'descr': '<f8', 'fortran_order': False, 'shape': (137438953472,), }"
-    text += " " * (63 - (10 + len(text)) % 64) + "\n"
-    entries[arrays[0]] = b"\x93NUMPY\x01\x00" + struct.pack("<H", len(text)) + text.encode()
+    entries[arrays[0]] = npy_header((137438953472,))
     return _zipped(entries)
 
 

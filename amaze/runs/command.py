@@ -31,7 +31,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from amaze import __version__
 from amaze.errors import AmazeError, UsageError, one_line
@@ -112,6 +112,12 @@ def terminated_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _named(target: str) -> Any:
+    """The object named ``"module:name"``, its module imported now (names from the code only)."""
+    module, _, name = target.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
 @dataclass(frozen=True)
 class TrainingCommand:
     """A training command (``amaze-evolve``, ``amaze-train``) around a trainer's run class.
@@ -145,10 +151,7 @@ class TrainingCommand:
 
     def trainer(self) -> type[Run]:
         """The run class, imported now if it was given by name."""
-        if not isinstance(self.run_class, str):
-            return self.run_class
-        module, _, name = self.run_class.partition(":")
-        return getattr(importlib.import_module(module), name)
+        return _named(self.run_class) if isinstance(self.run_class, str) else self.run_class
 
     def config(self) -> type[RunConfig]:
         """The run's config class (without importing a run class given by name)."""
@@ -282,8 +285,7 @@ class TrainingCommand:
         if args.resume:
             self._refuse_with(args, "--resume", "continues the run as its config.json says")
             if self.check_resume is not None:
-                module, _, name = self.check_resume.partition(":")
-                getattr(importlib.import_module(module), name)(args.resume)
+                _named(self.check_resume)(args.resume)
             return self.trainer().resume(args.resume, progress=progress)
         if args.replay:
             self._refuse_with(args, "--replay", "reruns the replayed run's config.json")

@@ -45,7 +45,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from amaze.curriculum.coevolution import MazePopulation
+from amaze.curriculum.maze_population import MazePopulation
 from amaze.maze import Maze
 from amaze.runs.branches import Clock
 from amaze.runs.checkpoint import StateCodec

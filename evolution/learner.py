@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from amaze.curriculum.learner import TrainingOutcome, checked_session_budget
+from amaze.curriculum.learner import SessionWatch, TrainingOutcome, checked_session_budget
 from amaze.runs.checkpoint import StateCodec, read_checkpoint, write_checkpoint
 from amaze.validation import check_number
 from evolution import EvolutionConfigError
@@ -178,8 +178,18 @@ class EvolutionLearner:
         budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
         progress: Callable[[int], None] | None = None,
+        watch: SessionWatch | None = None,
     ) -> TrainingOutcome:
-        """A training session on ``mazes`` (as given), or the rest of the one saved mid-way."""
+        """A training session on ``mazes`` (as given), or the rest of the one saved mid-way.
+
+        A ``watch`` (judging the session on other mazes) is refused: a
+        generation's champion is the agent, chosen on the training mazes.
+        """
+        if watch is not None:
+            raise EvolutionConfigError(
+                "an evolution session is judged on its training mazes: a watch on other"
+                " mazes is for the RL learners"
+            )
         mazes = tuple(str(m) for m in mazes)
         if not mazes:
             raise EvolutionConfigError("a training session needs at least one maze")

@@ -3,43 +3,28 @@
 A :class:`NetworkSpec` describes one architecture (robot, hidden layers,
 activation, image encoder); a parameter vector of ``spec.n_params`` floats is
 one individual, and :meth:`NetworkSpec.population` turns a ``(P, n_params)``
-array into a :class:`NetworkPopulation`, the population policy that plays
-all ``P`` individuals at once on the batch engine (see
-:mod:`evolution.population`: agent ``k`` belongs to individual ``k // M``).
-This is what CMA-ES optimises.
+array into a :class:`NetworkPopulation`, the population policy that plays all
+``P`` individuals at once on the batch engine (agent ``k`` belongs to
+individual ``k // M``, see :mod:`evolution.population`). This is what CMA-ES
+optimises.
 
-**Inputs.** Discrete-input robots (``DD``) see their 8 floats as they are.
-Image robots (hybrid ``CD``/``H`` and continuous ``CC``) see a ``v x v``
-uint8 image (``v`` = 11, 15...). Evolving a weight per pixel would give
-CMA-ES thousands of parameters (225 x 16 for one hidden layer of 16 on
-``H15``), far past where a full covariance matrix is practical, so the image
-goes through a fixed, non-evolved encoder first: **average pooling to a
-``pool x pool`` grid** (default 5), pixels scaled to [0, 1]. The grid's
-block edges are ``floor(linspace(0, v, pool + 1) + 0.5)``: 3 x 3 pixel
-blocks for ``v = 15``, blocks of 2, 2, 3, 2, 2 pixels for ``v = 11``. The
-pooled grid keeps what a cell shows: walls (the border blocks), the origin
-marker (a border block's middle), and a sign's direction (an arrow's head
-weighs more than its tail). ``pool = v`` feeds the raw pixels.
+**Inputs.** ``DD`` robots see their 8 floats. Image robots (``CD``/``H``/``CC``)
+see a ``v x v`` uint8 image, which a fixed, non-evolved encoder average-pools
+to a ``pool x pool`` grid (default 5) of pixels scaled to [0, 1], so that
+CMA-ES is not given a weight per pixel. The block edges are
+``floor(linspace(0, v, pool + 1) + 0.5)``; ``pool = v`` feeds the raw pixels.
 
-**Layers.** Dense layers ``n_inputs -> hidden... -> n_outputs`` with the
-hidden activation (``tanh``, ``relu``, ``sigmoid``, ``identity``) on hidden
-layers only; ``hidden = ()`` is a linear policy. Outputs: 4 logits for
-discrete actions, the action being the first maximal one (E, N, W, S order);
-2 for continuous actions, squashed by tanh into accelerations in [-1, 1].
+**Layers.** Dense layers ``n_inputs -> hidden... -> n_outputs``, the hidden
+activation (``tanh``, ``relu``, ``sigmoid``, ``identity``) on hidden layers
+only; ``hidden = ()`` is a linear policy. Outputs: 4 logits for discrete
+actions (the action is the first maximal one, in E, N, W, S order); 2 for
+continuous actions, squashed by tanh into accelerations in [-1, 1].
 
-**Symmetry.** Observations and actions are in the maze's frame (E, N, W, S),
-and the task looks the same from every side: a clue pointing north calls for
-the move north exactly as one pointing east calls for the move east. With
-``symmetry = "rotations"`` (discrete actions only) the network scores one
-direction at a time: the logit of direction ``d`` is the network's single
-output on the inputs turned a quarter-turn ``d`` times clockwise, so that side
-``d`` lies east (the 8 inputs of DD robots shifted cyclically, both the walls
-and the signs; the pooled grid of image robots turned with ``np.rot90``). One
-set of weights thus serves the four directions: the policy is equivariant by
-construction (turn the cell and the action turns with it), has about a quarter
-of the parameters, and learns from a clue seen on one side what it means on
-all. With the symmetric block edges of the default pooling (every ``v`` with
-``pool = 5``), turning the pooled grid is pooling the turned image.
+**Symmetry.** With ``symmetry = "rotations"`` (discrete actions only) the logit
+of direction ``d`` is the network's single output on the inputs turned a
+quarter-turn ``d`` times clockwise (the 8 DD inputs shifted cyclically, the
+pooled grid turned with ``np.rot90``): one set of weights for the four
+directions, equivariant by construction (``docs/trainers/evolution.md``).
 
 **Parameter layout.** For each layer in order, its weights ``(d_in, d_out)``
 row-major, then its biases ``(d_out,)`` (:meth:`NetworkSpec.unflatten`).
@@ -55,15 +40,13 @@ CD15, rotations    25       26         433          1 921
 CC15/CC11          25       52         450          1 954
 =================  =======  =========  ===========  ================
 
-**Speed.** The forward pass is a numba kernel working on blocks of up to 64
-agents side by side (the SIMD axis): agents of one individual, or, when a
-population has more individuals than episodes each (a few mazes), the same
-episode of 64 individuals. It skips the agents whose scored episode has
-ended (the ``retire`` hook of :func:`amaze.evaluation.policy.run_episodes`). Arithmetic
-is float32, in the same order in both kinds of blocks; tanh is a rational
-approximation (Eigen's, within 4e-7 of the exact value). So an individual
-acts the same, bit for bit, whether it is evaluated in a population of any
-size, alone (:mod:`evolution.agent_file`), or on one thread or several.
+**Speed.** The forward pass is a numba kernel over blocks of up to 64 agents
+(of one individual, or the same episode of 64 individuals), skipping agents
+whose scored episode has ended (the ``retire`` hook of
+:func:`amaze.evaluation.policy.run_episodes`). Arithmetic is float32, in one
+order, with Eigen's rational tanh (within 4e-7): an individual acts the same,
+bit for bit, in a population of any size, alone (:mod:`evolution.agent_file`),
+on one thread or several.
 """
 
 from __future__ import annotations

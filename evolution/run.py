@@ -10,55 +10,35 @@ same loop::
     result = backend.evaluate(algorithm.population_policy(candidates))
     algorithm.tell(candidates, result.fitness)
 
-The backend is an :class:`~evolution.population.EvaluationBackend` made by
-the current :mod:`evolution.backends` backend: locally a
+The backend comes from :mod:`evolution.backends`: locally a
 :class:`~evolution.population.PopulationEvaluator` on the batch engine, with
 ``--backend ray`` the population split across Ray actors (bit-identical
-results, so the same champion). Fitness is
-the mean over the training mazes, each in its 4 rotations, of the paper's R̄
-(or the success rate, or the reference's pretty reward).
+results). Fitness is the mean over the training mazes, each in its 4
+rotations, of the paper's R̄ (or the success rate, or the reference's pretty
+reward).
 
-**Budgets** are counted as for the RL baselines: environment steps (the
-steps of the scored episodes, :attr:`PopulationResult.env_steps`) and
-wall-clock seconds (everything the loop does: evaluation, breeding, logging
-and checkpoints). A run stops after the first generation that reaches
-either budget (so it may overshoot by less than one generation), after
-``max_generations``, or when the algorithm has stopped (CMA-ES with no
-restart left).
+**Budgets**, as for the RL baselines: environment steps of the scored episodes
+(:attr:`PopulationResult.env_steps`) and wall-clock seconds (everything the
+loop does). A generation starts only if the steps left pay its least cost
+(:meth:`EvolutionRun.generation_steps`) and seconds are left, before
+``max_generations`` and while the algorithm goes on (CMA-ES has a restart left).
 
-**Run folder** (``out``):
+**Run folder** (``out``; ``docs/trainers/evolution.md`` lists it): ``progress.csv``
+has a row per generation, ``generation, steps, seconds, best, mean, champion,
+eval_seconds`` (the generation's best and mean fitness, the best fitness so
+far, the seconds spent playing episodes). ``checkpoints/state.npz``, the whole
+run state, is written atomically after the first generation, then after the
+first generation that ends ``checkpoint_seconds`` (default 10; 0: every
+generation) after the previous checkpoint, and after the last one, as JSON
+plus arrays that name no function (:mod:`amaze.runs.checkpoint`,
+:func:`evolution.checkpoint.evolution_codec`). ``agent.npz`` is the agent
+``agent_rule`` picks, an agent file of :mod:`evolution.agent_file`.
 
-* ``config.json``: the :class:`EvolveConfig`;
-* ``progress.csv``: one row per generation: ``generation, steps, seconds,
-  best, mean, champion, eval_seconds`` (best and mean fitness of the
-  generation, the best fitness so far, the seconds spent playing episodes);
-* ``checkpoints/state.npz``: the whole run state after a generation (the
-  algorithm with its random generators, steps and seconds spent), written
-  atomically after the first generation, then after the first generation that
-  ends ``checkpoint_seconds`` (default 10) after the previous checkpoint, and
-  after the last one (``checkpoint_seconds: 0``: after every generation). A
-  checkpoint of a CMA-ES run with a large population weighs megabytes, and
-  fast generations take milliseconds: writing one every generation would
-  cost more than the evolution. It is JSON plus arrays
-  (:mod:`amaze.runs.checkpoint`, with :func:`evolution.checkpoint.evolution_codec`):
-  a file can only rebuild the classes of the run's own libraries and cannot
-  name a function to call;
-* ``champion.npz``: the best individual so far, an agent file of
-  :mod:`evolution.agent_file` (no pickle; ``amaze run --controller champion.npz``);
-* ``summary.json``: the champion on the standard evaluation suite
-  (``success_rate``, ``normalized_reward``, ``input_recognition``...), its
-  training fitness and the budget spent (``env_steps``, ``seconds``,
-  ``generations``, ``policy_steps_per_second``);
-* ``fitness.png``: best, mean and champion fitness against env steps;
-* ``trajectories/``: the champion in the 4 rotations of the first training maze.
-
-**Resume.** :func:`resume` reloads the checkpoint and goes on (rows of
-``progress.csv`` written after it are dropped). Every draw of
-the algorithms comes from their own seeded generators, kept in the
-checkpoint, and evaluations are deterministic, so a run resumed after a kill
-reaches the same champion and the same progress rows (seconds aside) as an
-uninterrupted one. A run stopped by its *seconds* budget is the exception:
-where it stops depends on the machine's speed.
+**Resume.** :func:`resume` reloads the checkpoint and goes on, dropping the rows
+of ``progress.csv`` written after it. The algorithms draw from their own
+seeded generators, kept in the checkpoint, and evaluations are deterministic,
+so a resumed run reaches the same champion and progress rows (seconds aside)
+as an uninterrupted one, unless its *seconds* budget stops it.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@
     amaze-experiment status studies/smoke
     amaze-experiment report studies/smoke      # report.md, runs.csv, tests.csv, figures/
     amaze-experiment list                      # the shipped studies
+    amaze-experiment ablation studies/base studies/variant [...]   # one factor at a time
 
 ``run`` may be stopped (Ctrl-C, or ``kill`` of its process) and started
 again at any time: finished runs are kept, killed ones resume
@@ -22,10 +23,13 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from typing import NoReturn
 
 from amaze.runs.cluster import add_backend_arguments, check_backend
 from amaze.runs.command import CommandParser, run_command, terminated_as_interrupt
+from amaze.runs.folder import write_bytes
+from experiments.ablation import ablation_report
 from experiments.report import write_report
 from experiments.runner import format_status, run_study, study_status
 from experiments.study import load_study, study_names
@@ -61,6 +65,15 @@ def parser() -> CommandParser:
     report = commands.add_parser("report", help="write report.md, runs.csv and figures")
     report.add_argument("out", metavar="DIR")
     commands.add_parser("list", help="the shipped studies")
+    ablation = commands.add_parser(
+        "ablation",
+        help="how far each variant study moves the base study's medians (experiments.ablation)",
+    )
+    ablation.add_argument("base", metavar="BASE", help="the base study's folder or runs.csv")
+    ablation.add_argument(
+        "variants", nargs="+", metavar="VARIANT", help="studies with one factor changed"
+    )
+    ablation.add_argument("--out", metavar="FILE", help="write the Markdown table there too")
     return p
 
 
@@ -77,6 +90,12 @@ def _run(argv: Sequence[str]) -> int:
     if args.command == "report":
         path = write_report(args.out, warn=_warn)
         print(f"report: {path}")
+        return 0
+    if args.command == "ablation":
+        table = ablation_report(args.base, args.variants)
+        if args.out:
+            write_bytes(Path(args.out), table.encode("utf-8"))
+        print(table, end="")
         return 0
     check_backend(args.backend, args.address)
     study = load_study(args.study)

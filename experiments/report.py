@@ -62,6 +62,7 @@ from experiments.report_runs import (
     collect_rows,
     read_runs,
     read_summary,
+    scored_on,
     to_csv,
 )
 from experiments.report_tables import (
@@ -184,6 +185,13 @@ class Findings:
         return [f"![{title}]({relative})", "", f"*{title}* (also {others})", ""]
 
 
+#: How the report names the suite it scores the final agents on (a study's ``suite``).
+SUITE_WORDS = {
+    "standard": "standard evaluation suite",
+    "paper": "paper's evaluation suite (the 18 mazes its evaluation script built)",
+}
+
+
 def _header(f: Findings) -> list[str]:
     unread = sum(part.what == "its row" for part in f.left_out)
     finished = f"{len(f.rows)} of {len(f.study.runs)} runs finished"
@@ -197,8 +205,9 @@ def _header(f: Findings) -> list[str]:
         f"{finished}; written {datetime.now(UTC).isoformat(timespec='seconds')} from their"
         " `summary.json` and `evaluations.csv` files (`runs.csv`). Each run's agent is played"
         " as it trains on one evaluation set (family mazes with new seeds and the training"
-        " maze, 4 rotations each; `evaluations.csv`), and its final agent on the standard"
-        " evaluation suite (18 mazes x 4 rotations) and the input-recognition test (Table 3).",
+        " maze, 4 rotations each; `evaluations.csv`), and its final agent on the"
+        f" {SUITE_WORDS[f.study.suite]} (18 mazes x 4 rotations) and the input-recognition"
+        " test (Table 3); `runs.csv` holds the final agents on both suites.",
         "",
     ]
 
@@ -318,9 +327,9 @@ def _table3_section(f: Findings) -> list[str]:
         parts += [
             f"## Table 3, `{condition}` ({_budget_words(spec)})",
             "",
-            "The final agents on the standard evaluation suite, as the paper: maximum and median"
-            " over the seeds of each treatment; the best value of each statistic in **bold**,"
-            " the second in *italics* (higher is better everywhere).",
+            f"The final agents on the {SUITE_WORDS[f.study.suite]}, as the paper: maximum and"
+            " median over the seeds of each treatment; the best value of each statistic in"
+            " **bold**, the second in *italics* (higher is better everywhere).",
             "",
             table3(f.rows, f.study, condition, f.flagged)[0],
             "",
@@ -430,6 +439,7 @@ def _findings(folder: StudyFolder, study: Study) -> Findings:
     left_out: list[LeftOut] = []
     rows, finished, curves = read_runs(folder, study, left_out)
     write_bytes(folder.out / "runs.csv", to_csv(rows, RUN_COLUMNS))
+    rows = scored_on(rows, study.suite)  # what every table, test and figure scores
     tests = comparisons(rows, study)
     write_bytes(folder.out / "tests.csv", to_csv(_test_rows(tests), TEST_COLUMNS))
     out = folder.out / "figures"

@@ -58,6 +58,9 @@ RUN_COLUMNS = (
     "normalized_reward",
     "input_recognition",
     *(f"input_{kind}" for kind in INPUT_CLASSES),
+    "paper_input_recognition",
+    "paper_suite_success_rate",
+    "paper_suite_normalized_reward",
     "eval_set_success_rate",
     "eval_set_normalized_reward",
     "evaluation_set",
@@ -144,6 +147,8 @@ def _row(
     rates = rates if isinstance(rates, dict) else {}
     advice = summary.get("advice")
     advice = advice if isinstance(advice, dict) else {}
+    paper = summary.get("paper_suite")  # absent in summaries written before it existed
+    paper = paper if isinstance(paper, dict) else {}
     wall = _number(state["wall_seconds"].get(run.id))
     threads = state["threads"].get(run.id)
     return {
@@ -167,6 +172,9 @@ def _row(
         "normalized_reward": _number(summary.get("normalized_reward")),
         "input_recognition": _number(summary.get("input_recognition")),
         **{f"input_{kind}": _number(rates.get(kind)) for kind in INPUT_CLASSES},
+        "paper_input_recognition": _number(summary.get("paper_input_recognition")),
+        "paper_suite_success_rate": _number(paper.get("success_rate")),
+        "paper_suite_normalized_reward": _number(paper.get("normalized_reward")),
         "eval_set_success_rate": math.nan,
         "eval_set_normalized_reward": math.nan,
         "evaluation_set": "",
@@ -175,6 +183,25 @@ def _row(
         "advice_mazes_kept": _number(advice.get("mazes_kept_share")),
         "folder": str(folder.run_folder(run).relative_to(folder.out)),
     }
+
+
+def scored_on(rows: Sequence[dict[str, Any]], suite: str) -> list[dict[str, Any]]:
+    """``rows`` whose ``success_rate`` and ``normalized_reward`` are those of ``suite``.
+
+    The standard suite's are the rows' own; with ``paper`` they become the
+    ``paper_suite_*`` columns (``runs.csv`` keeps both), so every table, test
+    and figure of the report is of the paper's suite.
+    """
+    if suite == "standard":
+        return list(rows)
+    return [
+        {
+            **row,
+            "success_rate": row["paper_suite_success_rate"],
+            "normalized_reward": row["paper_suite_normalized_reward"],
+        }
+        for row in rows
+    ]
 
 
 def read_runs(

@@ -17,33 +17,20 @@ Runs go at most ``workers`` at a time, each in its own process
 (:mod:`experiments.worker`) with an equal share of the cores. A run with a
 ``summary.json`` is finished and never run again; a run killed mid-way
 resumes from its last checkpoint; a failed run is tried again at the next
-``run`` (its log says why it failed). Interrupting the runner (Ctrl-C)
-stops the workers, which resume next time: a study can be stopped and
-restarted at any moment without losing a finished run. One progress bar
-covers the whole study: each run counts as the fraction of its budget it
-has spent (read from its ``progress.csv``), with an ETA.
+``run``. One progress bar covers the study, each run counting as the fraction
+of its budget spent (from its ``progress.csv``).
 
-One runner at a time: the runner holds ``runner.lock`` (``flock``) and its
-workers inherit it, so the lock lasts while the runner or any of its workers
-lives, and the kernel releases it when the last of them dies, however it
-died. A runner started on a folder whose lock is held is refused, naming the
-holder, rather than train beside it into the same run folders; a lock left
-by processes that are gone is simply taken. The workers also die with their
-runner (:func:`amaze.runs.launchers.die_with_parent`): a runner killed
-outright (``kill -9``) leaves nothing running, and its killed runs resume at
-the next ``run``. A worker also locks its run folder
-(:mod:`experiments.worker`), so that no two processes ever train in one.
+One runner at a time: ``runner.lock`` is an ``flock`` that lasts while the
+runner or any of its workers lives, so a runner started on a folder whose
+lock is held is refused, naming the holder, and a lock left by processes that
+are gone is taken. The workers die with their runner
+(:func:`amaze.runs.launchers.die_with_parent`), even after ``kill -9``, and
+each locks its run folder too (:mod:`experiments.worker`).
 
-With ``backend="ray"`` (``--backend ray``) each run is a Ray task of one CPU
-running the same worker command (:mod:`amaze.runs.ray_tasks`), at most
-``workers`` at once (default: the cluster's CPUs), so a study fills a
-cluster; the study's folder must be on a filesystem all the nodes share.
-A run whose worker or node is lost, or whose process is killed, is retried
-by Ray and resumes from its checkpoint; a run that fails (non-zero exit) is
-recorded as failed, as on this machine. The bookkeeping, the progress bar
-and the interruption are the same for both backends (one loop,
-:func:`amaze.runs.launchers.run_jobs`); ``state.json`` records one thread
-per run on Ray.
+With ``backend="ray"`` each run is a Ray task of one CPU running the same
+worker command (:mod:`amaze.runs.ray_tasks`; ``docs/ray.md``), with the same
+bookkeeping (:func:`amaze.runs.launchers.run_jobs`); the study's folder must be
+on a filesystem all the nodes share.
 """
 
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """Studies as files: a grid of trainers x algorithms x budgets x seeds, in TOML.
 
-A study names the runs of a comparison. ``experiments/studies/`` ships
-``smoke``, ``paper``, ``evo-vs-rl`` and ``curators``; any TOML file of the
-same form is a study::
+A study names the runs of a comparison. ``experiments/studies/`` ships those
+of ``docs/studies.md``; any TOML file of this form is a study::
 
     name = "mine"
     description = "PPO against CMA-ES on the paper's three trainers"
@@ -10,6 +9,8 @@ same form is a study::
     robot = "DD"                      # or several: robot = ["DD", "H15"]
     trainers = ["direct", "interpolation", "edhucat-careful"]
     algorithms = ["ppo", "cmaes"]
+    suite = "standard"                # the final agents' scores in the report: the
+                                      #   standard suite, or "paper" (Table 3's suite)
 
     [budgets]                         # each budget is a treatment of its own
     steps = { steps = 1_000_000 }     # env steps
@@ -35,30 +36,22 @@ same form is a study::
     treatments = ["direct/ppo", "interpolation/ppo", "edhucat-careful/ppo"]  # 1 to 8 cells
     pairs = [["interpolation/ppo", "direct/ppo"]]  # probability of improvement of each
 
-A *treatment* is a (trainer, algorithm, condition) cell, where the
-condition is the budget (and the robot, when the study has several); each
-treatment runs once per seed. Every run's config is built and checked by its trainer's config class
-when the study is read, and so are a curriculum's curator options (by
-building its curator), so a bad study fails before anything runs, with a
-message naming the file and the run. Checks that cost nothing come first:
-the file's size (at most :data:`MAX_STUDY_BYTES`) and nesting (at most
-:data:`MAX_DEPTH`), the seeds (``0 .. 2**32 - 1``, what a run's seed may
-be) and the number of runs, counted from the grid before a single run is
-built (at most :data:`MAX_RUNS`). The study's name, description and
-comparison titles are printable text (no control character), and its
-budget and comparison names short ASCII names (they become file names and
-cells of the report's CSV files).
+A *treatment* is a (trainer, algorithm, condition) cell, the condition being
+the budget (and the robot, when the study has several), run once per seed.
+Reading a study checks it whole, so that a bad one fails before anything runs,
+naming the file and the run: first what costs nothing, the file's size
+(:data:`MAX_STUDY_BYTES`) and nesting (:data:`MAX_DEPTH`), the seeds
+(``0 .. 2**32 - 1``), the number of runs counted from the grid
+(:data:`MAX_RUNS`), printable names and titles, short ASCII budget and
+comparison names (they become file names and CSV cells); then every run's
+config, built by its trainer's config class, and its curator options.
 
-A *comparison* (``[[comparisons]]``) is what one figure of the report
-compares: up to :data:`MAX_LINES` trainer/algorithm cells of the grid
-(``treatments``) under one ``budget``, each a line of learning curves and of
-a performance profile, and the ``pairs`` whose probability of improvement
-the report gives (by default, the pairs that differ in one factor, trainer
-or algorithm; else every pair; ``pairs = []``: none). ``robot`` picks one of
-the study's robots; without it, a study of several robots gets the
-comparison once per robot (named ``name-robot``). A study that declares no
-comparison gets, per budget (and robot), the algorithms within each trainer
-and the trainers with each algorithm (:func:`default_comparisons`).
+A *comparison* is one figure of the report: up to :data:`MAX_LINES` cells under
+one ``budget``, and the ``pairs`` whose probability of improvement the report
+gives (by default the pairs that differ in one factor, else every pair;
+``pairs = []``: none). ``robot`` picks one of the study's robots; without it a
+study of several robots gets the comparison once per robot (``name-robot``).
+Without ``[[comparisons]]``, a study gets :func:`default_comparisons`.
 """
 
 from __future__ import annotations
@@ -112,9 +105,11 @@ STUDIES = files("experiments") / "studies"
 #: The keys a study file may have.
 STUDY_KEYS = frozenset(
     {"name", "description", "seeds", "robot", "trainers", "algorithms", "budgets", "options"}
-    | {"exclude", "comparisons"}
+    | {"exclude", "comparisons", "suite"}
 )
 
+#: The suites a study's report may score its final agents on (``suite`` in the study file).
+SUITES = ("standard", "paper")
 #: Most runs in one study.
 MAX_RUNS = 10_000
 #: Deepest nesting of tables and arrays in a study file. A study nests a few
@@ -200,6 +195,9 @@ class Study:
     runs: tuple[PlannedRun, ...]
     #: What the report compares: the file's ``[[comparisons]]``, else :func:`default_comparisons`.
     comparisons: tuple[StudyComparison, ...] = ()
+    #: The suite the report scores the final agents on: ``standard`` or ``paper`` (the
+    #: paper's Table 3 suite); ``runs.csv`` holds both.
+    suite: str = "standard"
 
     @property
     def treatments(self) -> list[str]:
@@ -295,6 +293,9 @@ def parse_study(text: str, source: str = "study") -> Study:
     if not is_text(description, lines=True):
         raise bad(f"description {_shown(description)} holds control characters")
     seeds = _seeds(data.get("seeds", 1), bad)
+    suite = data.get("suite", "standard")
+    if suite not in SUITES:
+        raise bad(f"suite {_shown(suite)} is not one of {', '.join(SUITES)}")
     robots = _robots(data.get("robot", "DD"), bad)
     trainers = _names(data.get("trainers"), "trainers", TRAINERS, bad)
     algorithms = _names(data.get("algorithms"), "algorithms", ALGORITHMS, bad)
@@ -316,7 +317,7 @@ def parse_study(text: str, source: str = "study") -> Study:
                     run = PlannedRun(trainer, algorithm, budget_name, seed, config, shown)
                     runs.append(_checked(run, bad, curators))
     comparisons = comparisons or default_comparisons(grid)
-    return Study(name.strip(), description, source, text, tuple(runs), comparisons)
+    return Study(name.strip(), description, source, text, tuple(runs), comparisons, suite)
 
 
 def _toml(text: str, source: str, bad: Bad) -> dict[str, Any]:

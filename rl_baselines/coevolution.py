@@ -5,7 +5,7 @@ runs the shared co-evolution loop (:class:`~amaze.runs.coevolution.CoevolutionRu
 the population, the champion on validation mazes, budgets, checkpoints,
 ``mazes.csv``, ``population.png``, ``coevolution.png``) with one RL model as
 its learner (:class:`RLCoevolutionRun`; SB3's here, :class:`SB3CoevolutionRun`;
-the JAX learners' in :mod:`rl_baselines.jax_coevolution`), in *rounds*:
+the JAX learners' in :mod:`rl_baselines.jax.coevolution`), in *rounds*:
 
 1. the population proposes a batch of ``n_envs / 4`` mazes (one environment
    per rotation; ``coevolution.batch`` defaults to that and must match it);
@@ -69,7 +69,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.agents.engine import BatchEngine
-from amaze.curriculum.coevolution import MazePopulation
+from amaze.curriculum.maze_population import MazePopulation
 from amaze.evaluation.policy import EpisodeResults, run_episodes
 from amaze.maze import Maze, as_mazes, rotations
 from amaze.runs.branches import Clock

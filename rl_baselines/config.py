@@ -5,7 +5,7 @@
 ``edhucat`` or ``edens`` (the curriculum loop, :class:`rl_baselines.curriculum.SB3CurriculumRun`),
 with ``curator``, ``stages``, ``branches`` and ``target`` for the curricula, or
 ``coevolution`` (:class:`rl_baselines.coevolution.SB3CoevolutionRun`, or with the jax framework
-:class:`rl_baselines.jax_coevolution.JaxCoevolutionRun`).
+:class:`rl_baselines.jax.coevolution.JaxCoevolutionRun`).
 
 **Rollouts of a curriculum** (:func:`fitted_hyperparameters`). A curriculum
 gives each branch ``budget_steps / (K * S)`` steps (the paper's split), which
@@ -37,14 +37,21 @@ from dataclasses import dataclass
 from typing import Any
 
 from amaze.agents.robot import as_robot
-from amaze.curriculum.coevolution import MazePopulationConfig
+from amaze.curriculum.learner import EVALUATION_RULES
+from amaze.curriculum.maze_population import MazePopulationConfig
 from amaze.curriculum.regimes import REGIMES, branch_allowance
 from amaze.evaluation.suite import PAPER_EVALUATION_MAZE
-from amaze.runs.config import option
+from amaze.runs.config import config_from_dict, option
 from amaze.runs.regime import RegimeConfig
 from amaze.validation import check_integer, check_number, closest
 from rl_baselines import RLConfigError
 from rl_baselines.jax.hyperparameters import SB3_DEFAULTS
+from rl_baselines.protocols import (
+    PROTOCOL_REGIMES,
+    PROTOCOLS,
+    protocol_values,
+    with_learning_rate,
+)
 
 __all__ = [
     "FRAMEWORKS",
@@ -55,6 +62,10 @@ __all__ = [
     "used_hyperparameters",
 ]
 
+#: Evaluations per stage on an interpolation's evaluation series (the paper's scripts: 100).
+DEFAULT_STAGE_EVALUATIONS = 100
+#: Most evaluations per stage.
+MAX_STAGE_EVALUATIONS = 10_000
 #: The fewest steps per environment a fitted rollout has.
 MIN_N_STEPS = 8
 #: What trains the agent: stable-baselines3, or its A2C/PPO compiled with JAX
@@ -77,6 +88,7 @@ class TrainConfig(RegimeConfig):
     #: coevolution included (rl_baselines.coevolution); edens-populations, whose
     #: alternatives copy the learner every epoch, is evolution's only.
     supported_regimes = tuple(r for r in REGIMES if r != "edens-populations")
+    agent_rules = ("final", *EVALUATION_RULES)
     #: An open-ended curriculum's epoch: the paper's 100 k steps a branch at 3 M steps, K = 3.
     default_epochs = 10
     default_eval_mazes = (PAPER_EVALUATION_MAZE,)
@@ -108,9 +120,82 @@ class TrainConfig(RegimeConfig):
         help="SB3 hyperparameters overriding SB3's defaults",
         command_line=False,
     )
+    agent_rule: str | None = option(
+        None,
+        "which agent the run hands over: final (the agent when training stops), best-eval"
+        " (the best on eval_mazes, by success rate then R̄), best-eval-reward (the best by R̄"
+        " alone, never the untrained one: SB3's EvalCallback); in interpolation with"
+        " --stage-eval-target, the last stage's best on its evaluation series (default: final)",
+        metavar="RULE",
+        regimes=("direct", "interpolation"),
+    )
+    stage_eval_target: str | None = option(
+        None,
+        "interpolation: the end maze of an evaluation series, interpolated as the target is;"
+        " each stage is evaluated on the same stage of it (4 rotations), stops once every"
+        " episode there is optimal, and keeps its best agent (the paper's scripts); default:"
+        " none, stages stop on their own mazes",
+        metavar="MAZE",
+        regimes=("interpolation",),
+    )
+    stage_evaluations: int | None = option(
+        None,
+        "interpolation with --stage-eval-target: evaluations per stage, every stage"
+        " allowance / N env steps (default: 100, the paper's scripts)",
+        metavar="N",
+        regimes=("interpolation",),
+    )
+    protocol: str | None = option(
+        None,
+        "a named protocol filling the options it names that the config does not set:"
+        " paper-code (the paper's training scripts as they ran; docs/trainers/rl.md)",
+        choices=PROTOCOLS,
+        regimes=PROTOCOL_REGIMES,
+    )
+
+    @classmethod
+    def from_dict(cls, data: Any) -> TrainConfig:
+        """A checked config from a JSON object; a ``protocol`` fills only the keys it lacks."""
+        config = config_from_dict(cls, data, cls.error)
+        config._given = frozenset(data)
+        return config.validate()
+
+    def _apply_protocol(self) -> None:
+        """Fill the options the ``protocol`` names (:mod:`rl_baselines.protocols`), if unset.
+
+        Unset means absent from the JSON object the config was read from
+        (:meth:`from_dict`); a config built in Python counts a field at its
+        default as unset. Applied once: a validated config records every value.
+        """
+        if self.protocol is None or getattr(self, "_protocol_applied", False):
+            return
+        if self.regime not in PROTOCOL_REGIMES:
+            return  # refused with the options of other regimes (refuse_options_without_effect)
+        given = getattr(self, "_given", None)
+        if given is None:
+            given = {
+                f.name
+                for f in dataclasses.fields(self)
+                if getattr(self, f.name)
+                != (f.default if f.default_factory is dataclasses.MISSING else f.default_factory())
+            }
+        try:
+            values = protocol_values(self.protocol, self.regime, self.budget_steps, given)
+        except ValueError as problem:
+            raise RLConfigError(f"protocol (--protocol): {problem}") from None
+        for name, value in values.items():
+            setattr(self, name, value)
+        if isinstance(self.hyperparameters, dict):
+            self.hyperparameters = with_learning_rate(self.hyperparameters)
+        self._protocol_applied = True
 
     def validate(self) -> TrainConfig:
         """Check every field; raise :class:`RLConfigError` naming the bad value."""
+        if self.protocol is not None and self.protocol not in PROTOCOLS:
+            raise RLConfigError(
+                f"unknown protocol {self.protocol!r} (choose from {', '.join(PROTOCOLS)})"
+            )
+        self._apply_protocol()
         if not isinstance(self.algo, str) or self.algo.lower() not in SB3_DEFAULTS:
             raise RLConfigError(
                 f"unknown algorithm {self.algo!r} (choose from {', '.join(SB3_DEFAULTS)})"
@@ -133,7 +218,45 @@ class TrainConfig(RegimeConfig):
         check_hyperparameters(self.algo, self.hyperparameters)
         self.hyperparameters = used_hyperparameters(self)
         self._check_framework()
+        self._check_stage_evaluation()
         return self
+
+    def _check_stage_evaluation(self) -> None:
+        """An interpolation's evaluation series, its cadence and the agent rule it allows."""
+        if self.regime != "interpolation":
+            return
+        if self.stage_eval_target is None:
+            for name in ("stage_evaluations", "agent_rule"):
+                if getattr(self, name) is not None:
+                    flag = name.replace("_", "-")
+                    raise RLConfigError(
+                        f"{name} (--{flag}) {getattr(self, name)!r} needs an evaluation series"
+                        " in the interpolation regime (--stage-eval-target MAZE)"
+                    )
+            return
+        self.stage_eval_target = self._maze("stage_eval_target", self.stage_eval_target)
+        if self.budget_steps is None:
+            raise RLConfigError(
+                "stage_eval_target needs budget_steps: a stage's evaluations are spaced by its"
+                " allowance of env steps"
+            )
+        if self.stage_evaluations is None:
+            self.stage_evaluations = DEFAULT_STAGE_EVALUATIONS
+        self.stage_evaluations = check_integer(
+            "stage_evaluations", self.stage_evaluations, minimum=1, maximum=MAX_STAGE_EVALUATIONS,
+            error=RLConfigError,
+        )  # fmt: skip
+        if self.agent_rule is None:
+            self.agent_rule = "final"
+        if self.agent_rule not in self.agent_rules:
+            raise RLConfigError(
+                f"agent_rule {self.agent_rule!r} is not one of {', '.join(self.agent_rules)}"
+            )
+        if self.agent_rule != "final" and self.final_training:
+            raise RLConfigError(
+                f"agent_rule {self.agent_rule!r} hands over the last stage's best agent, which"
+                " final_training would train further: give --no-final-training"
+            )
 
     def _check_framework(self) -> None:
         """The jax framework: its regimes, its robots, no TensorBoard, its hyperparameters.

@@ -2,7 +2,7 @@
 
 :class:`DirectRun` is the part of a direct RL run that does not depend on
 what learns (SB3, :class:`rl_baselines.train.SB3Run`, or the JAX learners,
-:class:`rl_baselines.jax_run.JaxRun`): the evaluations on ``eval_mazes``
+:class:`rl_baselines.jax.run.JaxRun`): the evaluations on ``eval_mazes``
 every ``eval_every`` env steps (the champion, convergence, ``progress.csv``),
 the training clock and seconds budget, the checkpoint's ``state.json``
 (checked on resume), the agent rule and the summary's figures. A subclass
@@ -21,6 +21,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from amaze.curriculum.learner import EVALUATION_RULES, evaluation_score
 from amaze.evaluation.protocol import EvaluationReport, Evaluator
 from amaze.maze import rotations
 from amaze.runs.anytime import Spent
@@ -51,10 +52,10 @@ def checked_state(state: dict[str, Any]) -> dict[str, Any]:
     best = state.get("best")
     if best is not None and not (
         isinstance(best, list)
-        and len(best) == 2
+        and len(best) in (1, 2)
         and all(isinstance(v, int | float) and not isinstance(v, bool) for v in best)
     ):
-        raise RLConfigError(f"checkpoint state best {best!r} is not null or two numbers")
+        raise RLConfigError(f"checkpoint state best {best!r} is not null or one or two numbers")
     if not isinstance(state.get("converged"), bool):
         raise RLConfigError(f"checkpoint state converged {state.get('converged')!r} is not a bool")
     seconds = check_number(
@@ -83,7 +84,8 @@ class DirectRun(Run):
     def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
         super().__init__(out, config)
         self.seconds_before = 0.0
-        self.best: tuple[float, float] | None = None
+        #: The champion's score (:func:`~amaze.curriculum.learner.evaluation_score`).
+        self.best: tuple[float, ...] | None = None
         #: Env steps at which the best evaluated model was evaluated.
         self.best_steps = 0
         self.converged = False
@@ -139,8 +141,12 @@ class DirectRun(Run):
         steps = self.steps
         summary = report.summary()
         score = (float(summary["success_rate"]), float(summary["normalized_reward"]))
-        if self.best is None or score > self.best:
-            self.best, self.best_steps = score, steps
+        rule = self.champion_rule
+        ranked = tuple(evaluation_score(rule, summary))
+        # SB3's EvalCallback (best-eval-reward) first evaluates after training has begun
+        candidate = rule != "best-eval-reward" or steps > 0
+        if candidate and (self.best is None or ranked > self.best):
+            self.best, self.best_steps = ranked, steps
             agent.save(self.champion_file)
         self.converged = all(e.normalized_reward >= OPTIMAL for e in report.episodes)
         self.last_eval_steps = steps
@@ -153,6 +159,18 @@ class DirectRun(Run):
             }
         )
         return score
+
+    @property
+    def champion_rule(self) -> str:
+        """How evaluations rank the champion: the agent rule's, else ``best-eval``."""
+        rule = self.config.agent_rule
+        return rule if rule in EVALUATION_RULES else "best-eval"
+
+    def best_shown(self) -> dict[str, str]:
+        """The champion's score as a progress line shows it (success rate, or R̄ alone)."""
+        if self.champion_rule == "best-eval-reward":
+            return {"best_eval_reward": "n/a" if self.best is None else f"{self.best[0]:.2f}"}
+        return {"best_eval_success": "n/a" if self.best is None else f"{self.best[0]:.2f}"}
 
     # -- checkpoints ------------------------------------------------------------------
 
@@ -197,8 +215,13 @@ class DirectRun(Run):
         return Spent(self.steps, self.steps, self.seconds())
 
     def final_agent(self) -> Any:
-        """The model when training stopped, or the best evaluated one (``agent_rule``)."""
-        if self.config.agent_rule == "best-eval":
+        """The model when training stopped, or the best evaluated one (``agent_rule``).
+
+        A run on seconds that ended before any evaluation after training
+        began has no ``best-eval-reward`` champion: it hands over the model
+        (``agent_figures`` says so).
+        """
+        if self.config.agent_rule in EVALUATION_RULES and self.best is not None:
             return SB3Agent.load(self.champion_file)
         return self.current_model_agent()
 
@@ -207,8 +230,11 @@ class DirectRun(Run):
 
     def agent_figures(self) -> dict[str, Any]:
         c = self.config
-        steps = self.best_steps if c.agent_rule == "best-eval" else self.steps
-        return {"agent_rule": c.agent_rule, "agent_steps": steps, "agent_untrained": steps == 0}
+        rule = c.agent_rule
+        if rule in EVALUATION_RULES and self.best is None:
+            rule = f"final ({rule} found no evaluated model after training began)"
+        steps = self.best_steps if rule in EVALUATION_RULES else self.steps
+        return {"agent_rule": rule, "agent_steps": steps, "agent_untrained": steps == 0}
 
     def stop_reason(self) -> str:
         c, steps = self.config, self.steps

@@ -40,7 +40,13 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from amaze.agents.robot import as_robot
-from amaze.curriculum.learner import TrainingOutcome, checked_session_budget
+from amaze.curriculum.learner import (
+    EVALUATION_RULES,
+    SessionWatch,
+    TrainingOutcome,
+    checked_session_budget,
+    evaluation_score,
+)
 from amaze.evaluation.protocol import Evaluator
 from amaze.maze.spec import MazeSpec
 from amaze.runs.config import read_json_object
@@ -65,6 +71,8 @@ LEARNER_FILE = "learner.json"
 LEARNER_FORMAT = "sb3-learner"
 #: R̄ at or above this counts as optimal (R̄ is 1 for a run in l-1 steps).
 OPTIMAL = 1.0 - 1e-9
+#: What a watched session's record says of its watch (its state besides: last, best, best_steps).
+WATCH_KEYS = ("mazes", "every", "rule")
 #: ``total_timesteps`` of a ``learn`` with no step limit (a seconds budget alone).
 UNLIMITED_STEPS = 2**62
 
@@ -138,17 +146,35 @@ class Sessions:
     session: dict[str, Any] | None
     _clock: tuple[float, float]
     _checkpoint: Callable[[], None] | None
+    _watch: SessionWatch | None = None
+    _watch_evaluator: Evaluator | None = None
 
     def _open_session(
-        self, mazes: list[str], budget_steps: int | None, budget_seconds: float | None
+        self,
+        mazes: list[str],
+        budget_steps: int | None,
+        budget_seconds: float | None,
+        watch: SessionWatch | None = None,
     ) -> dict[str, Any]:
-        """The saved session if it is this one (same mazes and budgets), else a new one."""
+        """The saved session if it is this one (same mazes, budgets and watch), else a new one.
+
+        A watched session evaluates on the watch's mazes (:meth:`_watch_point`)
+        instead of its own; its record keeps the watch's evaluation state.
+        """
         session = self.session
+        watched = None
+        if watch is not None:
+            canonical = [MazeSpec.from_string(str(m)).to_string() for m in watch.mazes]
+            watched = {"mazes": canonical, "every": watch.every, "rule": watch.rule}
+            self._watch_evaluator = Evaluator(self.robot_name(), canonical, inputs=False)
+        self._watch = watch
+        saved = None if session is None else session.get("watch")
         if (
             session is None
             or session["mazes"] != mazes
             or session["budget"] != budget_steps
             or session.get("budget_seconds") != budget_seconds
+            or (None if saved is None else {k: saved[k] for k in WATCH_KEYS}) != watched
         ):
             session = self.session = {
                 "mazes": mazes,
@@ -159,8 +185,47 @@ class Sessions:
                 "converged": False,
                 "last_eval": None,
             }
+            if watched is not None:
+                session["watch"] = {**watched, "last": 0, "best": None, "best_steps": None}
         self._clock = (time.monotonic(), float(session["seconds"]))
         return session
+
+    def robot_name(self) -> str:
+        """The robot the learner trains (what its evaluations play)."""
+        raise NotImplementedError
+
+    def agent(self) -> Any:
+        """The agent now, acting deterministically."""
+        raise NotImplementedError
+
+    def _watch_point(self, steps: int) -> bool:
+        """Evaluate on the watch's mazes if one is due at ``steps``; True if it evaluated.
+
+        A strictly better score than the session's best calls the watch's
+        ``keep_best()``; every episode optimal there ends the session.
+        """
+        session, watch = self.session, self._watch
+        assert session is not None and watch is not None and self._watch_evaluator is not None
+        state = session["watch"]
+        if steps - state["last"] < watch.every:
+            return False
+        report = self._watch_evaluator.evaluate(self.agent())
+        score = evaluation_score(watch.rule, report.summary())
+        state["last"] = int(steps)
+        if state["best"] is None or score > state["best"]:
+            state["best"], state["best_steps"] = score, int(steps)
+            if watch.keep_best is not None:
+                watch.keep_best()
+        session["converged"] = all(e.normalized_reward >= OPTIMAL for e in report.episodes)
+        return True
+
+    def _final_watch_point(self) -> None:
+        """At a session's end: the evaluation due there, if the session still goes on."""
+        session = self.session
+        assert session is not None
+        if self._watch is not None and not session["converged"] and not self._out_of_time():
+            if self._watch_point(int(session["steps"])) and self._checkpoint is not None:
+                self._checkpoint()
 
     def _close_session(self) -> TrainingOutcome:
         """The session's outcome; the learner is then between sessions."""
@@ -173,6 +238,7 @@ class Sessions:
         )
         self.session = None
         self._checkpoint = None
+        self._watch = None
         return outcome
 
     def _seconds(self) -> float:
@@ -236,6 +302,10 @@ class SB3Learner(Sessions):
         """Env steps of one rollout."""
         return int(self.model.n_steps) * self.n_envs
 
+    def robot_name(self) -> str:
+        """The robot the learner trains."""
+        return self.robot
+
     def session_target(self, budget_steps: int | None) -> int | None:
         """The steps of a whole session: as many whole rollouts as the budget pays (maybe none).
 
@@ -255,20 +325,21 @@ class SB3Learner(Sessions):
         budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
         progress: Callable[[int], None] | None = None,
+        watch: SessionWatch | None = None,
     ) -> TrainingOutcome:
         """One session on ``mazes`` (continued if this learner was saved inside it).
 
         The budget is ``budget_steps`` env steps, spent in whole rollouts (none
         if a rollout does not fit), and/or ``budget_seconds`` seconds of the session (``None``:
         no limit of that kind, not both); the session ends at whichever comes
-        first, or once converged. A saved session continues only when the
-        mazes and both budgets are the same.
+        first, or once converged (on ``watch``'s mazes when given). A saved
+        session continues only when the mazes, both budgets and the watch are the same.
         """
         budget_steps, budget_seconds = checked_session_budget(
             budget_steps, budget_seconds, RLConfigError
         )
         mazes = [MazeSpec.from_string(str(m)).to_string() for m in mazes]
-        session = self._open_session(mazes, budget_steps, budget_seconds)
+        session = self._open_session(mazes, budget_steps, budget_seconds, watch)
         self._checkpoint = checkpoint
         self._evaluator = Evaluator(self.robot, mazes, inputs=False)
         target = self.session_target(budget_steps)
@@ -292,6 +363,7 @@ class SB3Learner(Sessions):
                 tb_log_name=self.log_name,
             )
             session["steps"] = callback.steps_before + int(model.num_timesteps) - start
+        self._final_watch_point()
         return self._close_session()
 
     def branch(self, seed: int) -> SB3Learner:
@@ -351,6 +423,10 @@ class SB3Learner(Sessions):
         session = self.session
         assert session is not None and self._evaluator is not None
         session["steps"] = int(steps)
+        if self._watch is not None:
+            if self._watch_point(int(steps)) and self._checkpoint is not None:
+                self._checkpoint()
+            return
         last = session["last_eval"]
         if last is not None and steps - last < self.eval_every:
             return
@@ -372,13 +448,7 @@ def checked_session(data: Any, source: str) -> dict[str, Any] | None:
         return None
     if not isinstance(data, dict):
         raise RLConfigError(f"{source}: session {data!r} is not null or a JSON object")
-    mazes = data.get("mazes")
-    if not isinstance(mazes, list) or not mazes or not all(isinstance(m, str) for m in mazes):
-        raise RLConfigError(f"{source}: session mazes {mazes!r} is not a list of mazes")
-    try:
-        mazes = [MazeSpec.from_string(m).to_string() for m in mazes]
-    except ValueError as problem:
-        raise RLConfigError(f"{source}: session mazes: {problem}") from None
+    mazes = _checked_mazes(data.get("mazes"), f"{source}: session mazes")
 
     def integer(name: str, minimum: int) -> int:
         return check_integer(
@@ -407,6 +477,48 @@ def checked_session(data: Any, source: str) -> dict[str, Any] | None:
         ),
         "converged": data["converged"],
         "last_eval": None if last is None else integer("last_eval", 0),
+        **({} if data.get("watch") is None else {"watch": _checked_watch(data["watch"], source)}),
+    }
+
+
+def _checked_mazes(mazes: Any, what: str) -> list[str]:
+    """A saved list of maze strings, each checked, as canonical strings."""
+    if not isinstance(mazes, list) or not mazes or not all(isinstance(m, str) for m in mazes):
+        raise RLConfigError(f"{what} {mazes!r} is not a list of mazes")
+    try:
+        return [MazeSpec.from_string(m).to_string() for m in mazes]
+    except ValueError as problem:
+        raise RLConfigError(f"{what}: {problem}") from None
+
+
+def _checked_watch(data: Any, source: str) -> dict[str, Any]:
+    """The watch of a saved session (:meth:`Sessions._open_session`), every field checked."""
+    what = f"{source}: session watch"
+    if not isinstance(data, dict):
+        raise RLConfigError(f"{what} {data!r} is not a JSON object")
+    mazes = _checked_mazes(data.get("mazes"), f"{what} mazes")
+    if data.get("rule") not in EVALUATION_RULES:
+        raise RLConfigError(f"{what} rule {data.get('rule')!r} is not one of {EVALUATION_RULES}")
+    best = data.get("best")
+    size = len(evaluation_score(data["rule"], {"normalized_reward": 0, "success_rate": 0}))
+    if best is not None and not (
+        isinstance(best, list)
+        and len(best) == size
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in best)
+    ):
+        raise RLConfigError(f"{what} best {best!r} is not null or {size} numbers")
+
+    def integer(name: str, minimum: int) -> int:
+        return check_integer(f"{what} {name}", data.get(name), minimum=minimum, error=RLConfigError)
+
+    best_steps = data.get("best_steps")
+    return {
+        "mazes": mazes,
+        "every": integer("every", 1),
+        "rule": data["rule"],
+        "last": integer("last", 0),
+        "best": None if best is None else [float(v) for v in best],
+        "best_steps": None if best_steps is None else integer("best_steps", 0),
     }
 
 

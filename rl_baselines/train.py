@@ -7,9 +7,9 @@ are handed to :class:`rl_baselines.curriculum.SB3CurriculumRun` (the
 curriculum loop with an SB3 learner) by :meth:`SB3Run.run_class_for`, so
 :func:`train`, :func:`resume` and ``amaze-train`` take every regime.
 With ``framework`` ``jax`` the same regimes train with SB3's algorithms
-compiled with JAX: :class:`rl_baselines.jax_run.JaxRun` (direct),
+compiled with JAX: :class:`rl_baselines.jax.run.JaxRun` (direct),
 :class:`rl_baselines.curriculum.JaxCurriculumRun` and
-:class:`rl_baselines.jax_coevolution.JaxCoevolutionRun`; what both direct runs
+:class:`rl_baselines.jax.coevolution.JaxCoevolutionRun`; what both direct runs
 share is :class:`rl_baselines.direct.DirectRun`.
 
 The **direct** regime (paper §4): the agent trains on ``mazes`` (default:
@@ -120,8 +120,7 @@ class _EvaluationCallback(BaseCallback):
             run = self.run
             steps = int(self.model.num_timesteps)
             done = steps if run.config.budget_steps is not None else run.seconds()
-            best = "n/a" if run.best is None else f"{run.best[0]:.2f}"
-            self.shown.update(done, steps=f"{steps:,}", best_eval_success=best)
+            self.shown.update(done, steps=f"{steps:,}", **run.best_shown())
 
     def _on_rollout_start(self) -> None:
         self.show()
@@ -140,7 +139,7 @@ class SB3Run(DirectRun):
     """The RL trainer of the direct regime: SB3 learns, evaluated every ``eval_every`` steps.
 
     The curriculum regimes run as :class:`~rl_baselines.curriculum.SB3CurriculumRun`,
-    a ``--framework jax`` run as :class:`~rl_baselines.jax_run.JaxRun`
+    a ``--framework jax`` run as :class:`~rl_baselines.jax.run.JaxRun`
     (:meth:`run_class_for`).
     """
 
@@ -179,8 +178,8 @@ class SB3Run(DirectRun):
         SB3: :class:`SB3CurriculumRun` for the curriculum regimes,
         :class:`SB3CoevolutionRun` for coevolution, this class for direct.
         JAX (``framework`` jax): :class:`~rl_baselines.curriculum.JaxCurriculumRun`,
-        :class:`~rl_baselines.jax_coevolution.JaxCoevolutionRun` or
-        :class:`~rl_baselines.jax_run.JaxRun`.
+        :class:`~rl_baselines.jax.coevolution.JaxCoevolutionRun` or
+        :class:`~rl_baselines.jax.run.JaxRun`.
         """
         jax = getattr(config, "framework", "sb3") == "jax"
         if getattr(config, "is_curriculum", False):
@@ -189,14 +188,14 @@ class SB3Run(DirectRun):
             return JaxCurriculumRun if jax else SB3CurriculumRun
         if getattr(config, "regime", None) == "coevolution":
             if jax:
-                from rl_baselines.jax_coevolution import JaxCoevolutionRun
+                from rl_baselines.jax.coevolution import JaxCoevolutionRun
 
                 return JaxCoevolutionRun
             from rl_baselines.coevolution import SB3CoevolutionRun
 
             return SB3CoevolutionRun
         if jax:
-            from rl_baselines.jax_run import JaxRun
+            from rl_baselines.jax.run import JaxRun
 
             return JaxRun
         return cls

@@ -111,7 +111,7 @@ def option_tables(hooks) -> dict[str, str]:
         tables[f"run-options: {spec}"] = hooks.run_options_table(hooks._object(spec))
     for spec in (
         "evolution.cmaes:CMAESConfig",
-        "amaze.curriculum.coevolution:MazePopulationConfig",
+        "amaze.curriculum.maze_population:MazePopulationConfig",
     ):
         tables[f"fields: {spec}"] = hooks.fields_table(hooks._load(spec))
     for regime in ("direct", "edhucat", "coevolution"):

@@ -52,10 +52,13 @@ SAMPLES: dict[str, Any] = {
     "selector": {"epoch": 5},
     "max_generations": 3,
     "slip": 0.1,
+    "protocol": "paper-code",
+    "stage_eval_target": "M5_8x8_C1",
+    "stage_evaluations": 5,
 }
 
 
-def _sample(name: str, regime: str) -> dict[str, Any]:
+def _sample(name: str, regime: str, config_class: type = TrainConfig) -> dict[str, Any]:
     """A config setting ``name`` away from its default, valid where ``name`` acts in ``regime``."""
     if name == "curator":
         return {"curator": DEFAULT_CURATOR.get(regime, "random")}
@@ -65,6 +68,10 @@ def _sample(name: str, regime: str) -> dict[str, Any]:
         return {"advisor": "edens", "advisor_options": SAMPLES[name]}  # options need an advisor
     if name == "curator_options" and regime in ("interpolation", "edens"):
         return {"curator_options": {}}  # only the edhucat regime's default curator takes one
+    series = config_class is TrainConfig and regime == "interpolation"
+    if name in ("stage_evaluations", "agent_rule") and series:
+        # in interpolation, both act on an evaluation series
+        return {name: SAMPLES[name], "stage_eval_target": SAMPLES["stage_eval_target"]}
     return {name: SAMPLES[name]}
 
 
@@ -99,7 +106,7 @@ def test_a_field_is_refused_where_it_has_no_effect(
     config_class: type, name: str, regime: str
 ) -> None:
     field = next(f for f in _fields(config_class) if f.name == name)
-    data = {"regime": regime, "budget_steps": 10**6, **_sample(name, regime)}
+    data = {"regime": regime, "budget_steps": 10**6, **_sample(name, regime, config_class)}
     if regime in field.metadata["regimes"]:
         if name in ("epochs", "curator_options") and data.get(name) in (5, {}):
             if regime not in ("edhucat", "edens"):

@@ -10,49 +10,29 @@ the cell just left, deadline ``deadline_factor * l / dt`` steps. Observations
 follow §5 (gray levels ``round(255 * x)`` for images), built from the tables of
 :mod:`amaze.agents.tables`.
 
-Unlike the reference, stepping an agent whose episode ended is an error (the
-reference paid the finish bonus again), unless ``auto_reset`` restarts it in
-the same step (gymnasium's "same-step" autoreset: the returned observation is
-the first one of the new episode, the last one of the old episode is in
+Stepping an agent whose episode ended is an error, unless ``auto_reset``
+restarts it in the same step (gymnasium's "same-step" autoreset: the returned
+observation is the first of the new episode, the last of the old one is in
 ``StepResult.final_observations``).
-
-The hot loops are numba kernels. Per-agent state is one int32 row and one
-float64 row per agent. A discrete step reads few bytes: the agent's global
-cell and arrival code (0 at the start, else ``1 + d`` for the side ``d``
-leading back to the previous cell) give the move in the neighbour table (int32)
-and the observation: the cell's row of 8 floats, copied in one vector move,
-and the 0.5 mark on the arrival side. The step does not branch on what a random
-policy makes a coin flip (a wall or not, a backward step or not): bit masks
-select the outcome, as a mispredicted branch per agent cost more than the rest
-of the step; only the end of an episode, rare, branches, against a per-maze
-deadline in whole steps. Continuous robots keep their float position and
-velocity and their current and previous cells. A kernel validates the actions
-before touching any state and lists the episodes that ended in compact
-buffers, so that :meth:`BatchEngine.step` does little besides allocating the
-four arrays it returns; a step in which no episode ended shares one read-only
-set of empty arrays for the rest (nothing in them can change).
 
 Continuous actions follow :mod:`amaze.agents.actions`: finite accelerations are
 clipped to [-1, 1], a NaN or an infinity is refused (:class:`~amaze.errors.ActionError`,
-naming the agents), as in the readable ``Simulation``. The kernels never index
-outside their arrays whatever they are given, as a defence in depth should
-those checks be bypassed: they clip accelerations to [-1, 1] themselves and
-apply a non-finite one as 0, and clamp every cell coordinate computed from a
-position to the maze (and every window shift to the canvas). In the maze a
-robot moves less than its radius per step, so for legal actions the clamps
-change nothing but the one case where the reference indexed outside the maze
-too: a robot at full speed against the east or north border lands exactly on
-the border line. The guards cost a few comparisons per agent-step.
+naming the agents). The differences from the reference are listed in
+``docs/reference-behaviour.md`` §10.
 
-Kernels come in a serial and a parallel (``prange``) version, and give
-identical results. A parallel step pays a thread start-up and a barrier on
-every call, which a small batch does not win back, and it stalls for a
-scheduler time slice (milliseconds) whenever a worker thread waits for a core
-that another process holds: on a shared machine a parallel step can be ten to a
-hundred times slower than a serial one, and the load can change at any time.
-So by default an engine with enough work per step (and numba with several
-threads) times both versions on its own calls and runs the faster, trying the
-other again from time to time and at once when the chosen one slows down
+The hot loops are numba kernels on one int32 and one float64 row of state per
+agent; a discrete step is a look-up in the maze's neighbour table and a copy of
+the cell's 8 floats, the outcome selected by bit masks rather than branches.
+Whatever they are given, the kernels never index outside their arrays: they
+clip accelerations themselves, apply a non-finite one as 0 and clamp every cell
+coordinate to the maze (which changes nothing for legal actions but a robot
+at full speed landing exactly on the east or north border, where the
+reference indexed outside the maze too).
+
+Kernels come in a serial and a parallel (``prange``) version, with identical
+results. A parallel step pays a thread start-up and a barrier on every call,
+and stalls whenever another process holds a core, so an engine with enough
+work per step times both on its own calls and runs the faster
 (:class:`~amaze.agents.kernel_choice.KernelChoice`); smaller batches run the
 serial kernels. ``BatchEngine(parallel=True/False)`` fixes the choice.
 """

@@ -378,11 +378,19 @@ def _cmd_evaluate(args: argparse.Namespace) -> None:
         policy, robot, mazes, rotations=args.rotations, deadline_factor=args.deadline_factor
     )
     outcome = _evaluation_outcome(args, report)
+    if args.script_reward:
+        from amaze.evaluation.script_reward import script_rewards
+
+        rewards = script_rewards(policy, robot, [e.maze for e in report.episodes])
+        outcome["script_reward"] = sum(rewards) / len(rewards)
     if args.json:
         print(json.dumps(outcome))
     else:
         print(f"{args.agent} ({outcome['robot']}) on {report.played()}:")
         print(_evaluation_table(outcome))
+        if args.script_reward:
+            scored = outcome["script_reward"]
+            print(f"  mean R̄ as the paper's evaluation script scored it: {scored:+.3f}")
     if csv_path is not None:
         report.write_csv(csv_path)
         print(f"episodes -> {csv_path}", file=sys.stderr if args.json else sys.stdout)
@@ -578,6 +586,13 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
         " 1: each maze as given",
     )
     _add_agent_options(evaluate, controller=False, robot=None)
+    evaluate.add_argument(
+        "--script-reward",
+        action="store_true",
+        help="also the mean R̄ as the paper's evaluation script scored it (collisions -0.02,"
+        " backward steps -0.01, collisions in the start cell counted as backward steps;"
+        " discrete moves only; each episode replayed and recorded, slower)",
+    )
     evaluate.add_argument("--json", action="store_true", help="print one JSON object")
     evaluate.add_argument("--csv", metavar="FILE", help="write one row per episode")
     evaluate.set_defaults(run=_cmd_evaluate)

@@ -32,6 +32,13 @@ it was saved instead of starting another one, which is how a killed run
 resumes mid-stage. It also calls ``progress(steps)``, when given, with the
 env steps the session has spent so far, after every generation or rollout:
 what a live display (the browser curator's progress bars) shows.
+
+**Watched sessions** (:class:`SessionWatch`, RL learners). A session may be
+judged on other mazes than it trains on, as the paper's training scripts did
+with SB3's ``EvalCallback``: every ``every`` steps the agent is evaluated on
+the watch's mazes, the best one so far is kept (``keep_best()``), and the
+session stops once every episode there is optimal; the training mazes are then
+not evaluated at all.
 """
 
 from __future__ import annotations
@@ -45,7 +52,57 @@ import numpy as np
 
 from amaze.validation import check_integer, check_number
 
-__all__ = ["Learner", "TrainingOutcome", "branch_seed", "checked_session_budget"]
+__all__ = [
+    "EVALUATION_RULES",
+    "Learner",
+    "SessionWatch",
+    "TrainingOutcome",
+    "branch_seed",
+    "checked_session_budget",
+    "evaluation_score",
+]
+
+#: How an agent is ranked among the evaluations of a run or a session:
+#: ``best-eval`` by success rate, then R̄; ``best-eval-reward`` by R̄ alone (the
+#: mean reward SB3's ``EvalCallback`` ranks by: rotations of one maze share
+#: their optimal reward, so mean R̄ orders as mean reward does).
+EVALUATION_RULES = ("best-eval", "best-eval-reward")
+
+
+def evaluation_score(rule: str, summary: Any) -> list[float]:
+    """The score ``rule`` ranks an evaluation by (higher is better), from its summary."""
+    reward = float(summary["normalized_reward"])
+    if rule == "best-eval":
+        return [float(summary["success_rate"]), reward]
+    if rule == "best-eval-reward":
+        return [reward]
+    raise ValueError(f"unknown evaluation rule {rule!r} (choose from {EVALUATION_RULES})")
+
+
+@dataclass(frozen=True)
+class SessionWatch:
+    """The mazes a session is judged on, instead of its own (see the module docstring).
+
+    The agent is evaluated on ``mazes`` (as given: pass the rotations) at the
+    learner's first safe point (a rollout start) at least ``every`` env steps
+    after the previous evaluation, never at the session's start, and once more
+    at its end if one is due; ``rule`` (:data:`EVALUATION_RULES`) ranks the
+    evaluations, and a strictly better one calls ``keep_best()`` (so the
+    earliest wins ties, as SB3's ``EvalCallback``). The session stops once
+    every episode on ``mazes`` is optimal.
+    """
+
+    mazes: tuple[str, ...]
+    every: int
+    rule: str = "best-eval-reward"
+    keep_best: Callable[[], None] | None = None
+
+    def __post_init__(self) -> None:
+        if not self.mazes:
+            raise ValueError("a session watch needs at least one maze")
+        if isinstance(self.every, bool) or not isinstance(self.every, int) or self.every < 1:
+            raise ValueError(f"a session watch's every {self.every!r} is not an integer >= 1")
+        evaluation_score(self.rule, {"normalized_reward": 0.0, "success_rate": 0.0})
 
 
 @dataclass(frozen=True)
@@ -56,7 +113,8 @@ class TrainingOutcome:
     env_steps: int
     #: Wall-clock seconds of the session (over every resumed part of it).
     seconds: float
-    #: True if the session stopped early because every training episode was optimal.
+    #: True if the session stopped early because every training episode (or, in a
+    #: watched session, every episode on the watch's mazes) was optimal.
     converged: bool
 
 
@@ -72,8 +130,12 @@ class Learner(Protocol):
         budget_seconds: float | None = None,
         checkpoint: Callable[[], None] | None = None,
         progress: Callable[[int], None] | None = None,
+        watch: SessionWatch | None = None,
     ) -> TrainingOutcome:
-        """Train on ``mazes`` for ``budget_steps`` env steps or ``budget_seconds`` seconds."""
+        """Train on ``mazes`` for ``budget_steps`` env steps or ``budget_seconds`` seconds.
+
+        ``watch``: judge the session on other mazes (a learner that cannot refuses it).
+        """
         ...
 
     def branch(self, seed: int) -> Learner:

@@ -20,8 +20,8 @@ from pathlib import Path
 
 from PIL import Image, ImageDraw
 
-from amaze.curriculum.coevolution import MazePopulation
 from amaze.curriculum.curators import StageRecord
+from amaze.curriculum.maze_population import MazePopulation
 from amaze.maze.render import MIN_CELL_SIZE, load_font, render_maze, save_picture
 from amaze.maze.spec import MazeSpec
 

@@ -6,10 +6,10 @@ and mutates it in the others, runs one epoch of each without outside
 feedback, and keeps one alternative, drawn at random from the Pareto front of
 several criteria; alternatives that went extinct are rejected. In the
 ``edens-populations`` regime the state is the agents' search state plus the
-co-evolved maze population (:class:`~amaze.curriculum.coevolution.MazePopulation`),
+co-evolved maze population (:class:`~amaze.curriculum.maze_population.MazePopulation`),
 and the environment's *controller* is what shapes that population: the
 :data:`CONTROLLER_FIELDS` of its
-:class:`~amaze.curriculum.coevolution.MazePopulationConfig` (replay,
+:class:`~amaze.curriculum.maze_population.MazePopulationConfig` (replay,
 staleness, temperature, the score, the share and size of mutations, the sides
 of new mazes). ``batch`` and ``capacity`` are not mutated: every alternative
 plays the same number of mazes per generation, so alternatives cost the same
@@ -33,7 +33,7 @@ loop that plays the alternatives is :mod:`amaze.runs.edens_populations`.
   how hard the mazes are that its agents do solve (a population of easy
   mazes, or of hard mazes nobody solves, scores low);
 * ``diversity``: the mean distance between two members in the metric space
-  (:meth:`~amaze.curriculum.coevolution.MazePopulation.diversity`).
+  (:meth:`~amaze.curriculum.maze_population.MazePopulation.diversity`).
 
 *Learning progress* is not a criterion of its own: every alternative starts
 from the same parent, so its progress on the validation mazes orders the
@@ -54,13 +54,13 @@ from typing import Any
 
 import numpy as np
 
-from amaze.curriculum.coevolution import (
+from amaze.curriculum.edens import pareto_front
+from amaze.curriculum.maze_population import (
     CoevolutionError,
     MazePopulation,
     MazePopulationConfig,
     options_from_dict,
 )
-from amaze.curriculum.edens import pareto_front
 from amaze.maze.spec import MIN_SIZE, MazeSpec
 from amaze.validation import check_integer
 

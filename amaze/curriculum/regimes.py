@@ -17,7 +17,7 @@
   with EDEnS's own defaults: open-ended stages and a rehearsal of the
   lineage's earlier mazes (:mod:`amaze.runs.curriculum`);
 * **coevolution**: no stages: a population of mazes co-evolves with the
-  agents (:mod:`amaze.curriculum.coevolution`), leading to the target's
+  agents (:mod:`amaze.curriculum.maze_population`), leading to the target's
   family; one loop for every trainer (``amaze.runs.coevolution``), each
   trainer giving its batch step (a generation, an RL rollout);
 * **edens-populations**: EDEnS over co-evolved maze populations

@@ -5,7 +5,7 @@ with a probability mixing a rank of its score (:func:`rank_weights`, PLR's
 rank prioritisation with a temperature) and its staleness (generations since
 it was last played, :func:`staleness_weights`), as :func:`replay_distribution`
 combines them (Jiang et al., 2021). Used by
-:class:`~amaze.curriculum.coevolution.MazePopulation`.
+:class:`~amaze.curriculum.maze_population.MazePopulation`.
 """
 
 from __future__ import annotations

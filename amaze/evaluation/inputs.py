@@ -1,12 +1,11 @@
 """Input recognition: every discrete situation an agent may meet, with its correct action.
 
-The paper's second evaluation (beside solving a suite of mazes) does not
-suffer from cumulative failure: instead of following an agent through a maze,
-where one wrong turn may spoil everything after it, it shows the agent every
-cell content it could ever perceive, one at a time, and checks the action it
-picks. The inputs are enumerated from the sign types of a maze (its clues,
-lures and traps), exactly as the reference library's ``_all_inputs``
-(``docs/reference-behaviour.md`` §7.1), in its order:
+The paper's second evaluation shows the agent every cell content it could
+perceive, one at a time, and checks the action it picks (so one wrong turn
+does not spoil the rest, as it does in a maze). The inputs are enumerated from
+the sign types of a maze (its clues, lures and traps), exactly as the
+reference library's ``_all_inputs`` (``docs/reference-behaviour.md`` §7.1), in
+its order:
 
 * **dead ends** (three walls): for each open side, arriving from nowhere (the
   start) or through that side, without a sign and with each lure pointing to
@@ -19,38 +18,23 @@ lures and traps), exactly as the reference library's ``_all_inputs``
   may equal ``j``) and, when ``j != k``, each trap pointing ``j`` (correct: the
   remaining open side). ``36 nC + 24 nT``. Optionally, intersections without a
   sign, one for each ``(j, k)`` (correct: the first open side other than ``j``
-  and ``k``): nothing tells the way there, so their "correct" action is a
-  convention of the reference, and they are left out by default.
+  and ``k``, a convention of the reference), left out by default.
 
 The results are reported per (cell type, sign kind), as the reference does,
 and per the paper's four classes: **empty** (dead ends and corridors without a
 sign), **lure** (dead ends and corridors with a lure), **clue** (intersections
-with a clue) and **trap** (intersections with a trap).
+with a clue) and **trap** (intersections with a trap). The paper's own figure,
+on its script's 116 inputs (:func:`paper_input_set`), is
+:attr:`InputRecognition.paper_input_recognition` (``docs/evaluation.md``).
 
-**The paper's figure.** The paper's input recognition (its Table 3) was
-computed by its evaluation script (``eval.py`` of the reference repository,
-``generate_inputs`` and ``evaluate_inputs``) on its own set, for one clue
-(``1``), one lure (``.25``) and one trap (``.5``): this set without the lures
-in dead ends, 116 inputs (20 empty, 36 lures, 36 clues, 24 traps;
-:func:`paper_input_set`); its "All" is the unweighted mean of the four class
-rates (:attr:`InputRecognition.paper_input_recognition`), where
-:attr:`InputRecognition.overall` weighs every input alike. The set follows
-the script from commit 6cb352f on; at c4feded, where the runs ended, its four
-dead ends with no arrival side had all four walls (one input shown four times,
-each time with another correct action), which caps the empty rate at 17/20.
-
-Difference from the reference: discrete (DD) agents *see* the signs. The
-reference never wrote the sign into the 8-float input (§7), so a DD agent could
-not tell a clue from a trap and its scores meant little; here the input holds
-the sign's lightness in the slot of the direction it points to, exactly as in
-a maze (:func:`amaze.agents.observations.discrete_input`). Hybrid robots get the
-``v x v`` image of the cell (uint8, ``round(255 x)``, as from the engine).
+Discrete (DD) agents see the signs: the input holds the sign's lightness in the
+slot of the direction it points to, as in a maze
+(:func:`amaze.agents.observations.discrete_input`; the reference left it out).
+Hybrid robots get the ``v x v`` image of the cell (uint8, ``round(255 x)``).
 Continuous robots are not supported (their inputs depend on the position
-inside the cell and cannot be enumerated).
-
-Observations are in the policy format of :mod:`amaze.evaluation.policy` (float32
-``(n, 8)`` or uint8 ``(n, 1, v, v)``), so :func:`evaluate_inputs` calls a
-policy once on the whole set.
+inside the cell). Observations are in the policy format of
+:mod:`amaze.evaluation.policy`, so :func:`evaluate_inputs` calls a policy once
+on the whole set.
 """
 
 from __future__ import annotations

@@ -2,47 +2,28 @@
 
 The AMaze paper's RL results (its Table 3) were scored on 18 mazes chosen by
 its evaluation script, ``src/amaze/bin/sb3/eval.py`` of the reference
-repository (kgd-al/amaze), function ``_generate_mazes``, at commit c4feded
-(unchanged in later commits). The script:
+repository (kgd-al/amaze), function ``_generate_mazes``, at commit c4feded.
+The script:
 
 1. generates, for each of four families (``U``, ``C1``, ``C1_l.25_L.25``,
    ``C1_l.25_L.25_t.5_T.5``), the 20x20 mazes of seeds ``1,000,000 + j`` for
    ``j < 10,000``, and scores each by the entropy of the inputs along its
-   solution path (:func:`script_entropy`);
+   solution path, in nats (:func:`script_entropy`);
 2. for the first three families (columns trivial, simple, lures), keeps the
    mazes nearest the quantiles 0, 0.5 and 1 of the scores
    (:func:`nearest_quantiles`);
-3. for the trap family, keeps the trap counts that at least 3 mazes have (and
-   more than 0), takes the quantiles 0, 0.5 and 1 of the table of (trap count,
-   score) of those mazes *flattened* (counts and scores pooled into one sample)
-   and rounds each to a trap count ``t``; each ``t`` is a column, whose rows are
-   the mazes of ``t`` traps nearest the quantiles 0, 0.5 and 1 of their scores
-   (:func:`trap_columns`). On the full sample this gives 1, 3 and 16 traps, the
-   paper's "1 Trap", "3 Traps" and "16 Traps".
+3. for the trap family, rounds the quantiles 0, 0.5 and 1 of the pooled
+   (trap count, score) table of the counts that at least 3 mazes have to trap
+   counts ``t``, one column each, whose rows are the mazes of ``t`` traps
+   nearest the quantiles of their scores (:func:`trap_columns`): 1, 3 and 16
+   traps, the paper's "1 Trap", "3 Traps" and "16 Traps".
 
 Quantiles are numpy's default (linear interpolation) and the nearest maze is
 the first in seed order among equally near ones, as the script's ``argmin``.
-
-Two details of the commit are reproduced here:
-
-* **Entropy in nats.** The script's entropy uses the natural logarithm, where
-  amaze-benchmarker 1.0 and :func:`amaze.maze.metrics.surprisingness` use bits.
-  The unit changes the pooled quantile of the trap columns (in bits its median
-  rounds to 5 traps, not 3). Every median row but that of 1 trap is a tie
-  between the two middle mazes, whose mean is the median: exact for trivial, 3
-  and 16 traps (the smaller seed wins), broken by rounding (4e-16) for simple
-  and lures; scored by :func:`~amaze.maze.metrics.surprisingness` (bits), the
-  trivial, simple and lures medians are other mazes.
-  The values are therefore summed as the script sums them (states in the
-  order of their first appearance along the path).
-* **Traps at four-way crossings.** At c4feded a trap points to the first open
-  side, in the order E, N, W, S, that is neither the correct way nor the way
-  back; 1.0 draws one of the two (§3.8 of ``docs/reference-behaviour.md``).
-  Generation is otherwise the same as 1.0's for these strings.
-  :func:`script_entropy` uses the commit's trap directions; they change the
-  score of 2 of the 10,000 trap-family mazes, and none of the 18 picks. None
-  of the 18 mazes has such a trap, in any of its four rotations, so the mazes
-  played here are those the script played.
+The scores are summed term by term as the script sums them, with the
+commit's trap directions at four-way crossings (:func:`script_trap_direction`):
+several picks are ties that rounding or the unit would change
+(``docs/evaluation.md``, "The paper's evaluation suite").
 
 Scoring the 40,000 mazes takes about 12 s on one core, so the result ships
 with the package (``amaze/data/paper_suite.json``, loaded by

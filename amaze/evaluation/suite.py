@@ -15,35 +15,23 @@ lures      ``20x20_C1_l.25_L.25``                 always
 16 traps   ``20x20_C1_l.25_L.25_t.75_T.5``        exactly 16 traps
 =========  =====================================  =====================
 
-The paper names its last three columns "1 Trap", "3 Traps" and "16 Traps";
-we read them as the number of traps in the maze. As a maze string cannot fix
-that number (it is ``round(t * intersections)``), a trap column keeps only
-the mazes of its family with exactly that many traps; ``t`` is chosen so that
-such mazes are common. Clues are full-lightness arrows (``C1``), lures
-quarter-lightness (``L.25``) and traps half-lightness (``T.5``), as in the
-paper's training maze.
-
-For each column, a seeded sample of 10000 distinct mazes is drawn (seeds
-from a ``numpy`` generator with the column's own seed), their Surprisingness
-``S`` (the paper's, on the solution path) is computed, and the three rows
-are the mazes of minimal, median and maximal ``S`` (ties broken by the
+The paper's last three columns ("1 Trap", "3 Traps", "16 Traps") are read as
+trap counts: a maze string cannot fix that number (it is ``round(t *
+intersections)``), so a trap column keeps the mazes of its family with
+exactly that many traps, ``t`` chosen so that they are common. For each
+column, a seeded sample of 10000 distinct mazes is drawn (seeds from a
+``numpy`` generator with the column's own seed), and the three rows are the
+mazes of minimal, median and maximal Surprisingness ``S`` (ties broken by the
 smaller seed; the median is the element of rank 5000 of the sorted sample).
-Every maze is evaluated in its four rotations (start in each corner), which
-makes 72 episodes.
+Every maze is played in its four rotations: 72 episodes.
 
-Building the suite takes about a minute, so the result ships with the
-package (``amaze/data/evaluation_suite.json``), written by
-``python tools/make_evaluation_suite.py``; the tests check that it matches
-this definition. The paper's direct-training pair is kept alongside:
-:data:`PAPER_TRAINING_MAZE` and :data:`PAPER_EVALUATION_MAZE`.
-
-**The paper's suite.** The paper's RL results (its Table 3) were scored on
-another set of 18 mazes, built by its evaluation script (seeds 1,000,000 to
-1,009,999, one family for the three trap columns; see
-:mod:`amaze.evaluation.paper_suite`). :func:`paper_suite` loads them
-(``amaze/data/paper_suite.json``, written by ``python tools/make_paper_suite.py``)
-as a :class:`PaperSuite`, which the protocol plays as it plays this one. Run
-summaries and reports use the standard suite.
+The suite ships with the package (``amaze/data/evaluation_suite.json``),
+written by ``python tools/make_evaluation_suite.py``; the tests check it
+against this definition. The paper's direct-training pair is kept alongside:
+:data:`PAPER_TRAINING_MAZE` and :data:`PAPER_EVALUATION_MAZE`. The paper's own
+suite (:mod:`amaze.evaluation.paper_suite`) is :func:`paper_suite`, a
+:class:`PaperSuite` the protocol plays as it plays this one; run summaries
+and reports use the standard suite (``docs/evaluation.md``).
 """
 
 from __future__ import annotations

@@ -8,43 +8,33 @@ size: frame ``d`` (0 = east, 1 = north, 2 = west, 3 = south) is the sign
 pointing in direction ``d``, with row 0 = north (top) and column 0 = west.
 
 Built-in shapes
-    The reference library draws them with Qt (non-antialiased paths, pen width
-    0.1 of the unit square, pen gray level = the sign's lightness). To give
-    agents exactly the reference's observations, the bitmaps Qt produces at
-    every size from 3 to 64 are stored in ``amaze/data/sign_rasters.npz``
-    (made by ``tools/make_sign_rasters.py`` with the reference itself), as
-    *coverage levels*: 255 where the shape is drawn, 0 elsewhere and, at sizes
-    below 10 where the pen is thinner than a pixel, partial levels for thin
-    strokes. A pixel's gray level depends only on its coverage level and on
-    the pen gray level ``floor(255 * value + 0.5)`` (Qt's conversion of the
-    lightness to 8 bits, see :func:`pen_gray_level`): the full pen gray level
-    where covered, and a small stored table (Qt's premultiplied-alpha
-    rounding) for partial coverage. Larger sizes are drawn here with numpy
-    from the reference's shape definitions (:func:`draw_builtin_mask`); they
-    look like Qt's drawings but are not guaranteed to be pixel-identical.
+    The reference library draws them with Qt. To give agents exactly the
+    reference's observations, the bitmaps Qt produces at every size from 3 to
+    64 are stored in ``amaze/data/sign_rasters.npz`` (made by
+    ``tools/make_sign_rasters.py`` with the reference itself) as *coverage
+    levels*: 255 where the shape is drawn, 0 elsewhere and, below size 10,
+    partial levels for strokes thinner than a pixel. A pixel's gray level is
+    the pen gray level ``floor(255 * value + 0.5)`` (:func:`pen_gray_level`)
+    where covered, and a small stored table (Qt's premultiplied-alpha rounding)
+    for partial coverage. Larger sizes are drawn here with numpy from the
+    reference's shape definitions (:func:`draw_builtin_mask`); they look like
+    Qt's drawings but are not guaranteed to be pixel-identical.
 
 Custom shapes
     A registered PNG (:func:`amaze.maze.signs.register_custom_signs`) is converted
     to gray levels (alpha composited on black, then Pillow's ``L`` luma
     conversion) and resized smoothly (bilinear) to the requested size. A
     square image is the sign pointing east, rotated for the other directions;
-    an image four squares high holds the frames E, N, W, S from top to bottom.
-    As in the reference, the sign's lightness value is ignored for custom
-    images (it still matters to discrete agents, which only see the value).
+    an image four squares high holds the frames E, N, W, S from top to bottom,
+    its top row the north row of each frame. Any other shape raises
+    :class:`~amaze.errors.SignError`. As in the reference, the sign's
+    lightness is ignored for custom images (discrete agents, which only see
+    the value, still see it).
 
-Differences from the reference
-    * The top row of a custom image is the *north* row of its frames. The
-      reference mirrors custom images vertically (it flips every image when
-      converting it to numpy, which only suits its own built-in drawings), so
-      asymmetric pictures ended up upside down.
-    * A custom image that is neither square nor four squares high raises
-      :class:`~amaze.errors.SignError`; the reference silently used its
-      ``error`` sign instead.
-    * Values are ``float32`` (the reference returns ``float64`` arrays of the
-      same ``k / 255`` values).
-
-Results are cached in memory and returned read-only. Importing this module
-reads no file; the stored bitmaps are loaded on first use.
+Values are ``float32``. The differences from the reference are listed in
+``docs/reference-behaviour.md`` §10. Results are cached in memory and returned
+read-only; importing this module reads no file (the stored bitmaps are loaded
+on first use).
 """
 
 from __future__ import annotations

@@ -25,21 +25,12 @@ Tokens are separated by ``_`` or spaces, in any order; a later token overrides
 an earlier one (``5x5_3x3`` is 3x3) and sign tokens accumulate. Everything up to
 the last ``__`` is ignored (a name prefix).
 
-Differences from the reference, all for bad input only (every string the
-reference generates a maze from gives the same maze here):
-
-* a malformed token raises :class:`~amaze.errors.MazeStringError` (a
-  ``ValueError``) naming the token, where the reference raised ``KeyError``
-  (``SEx``) or a bare ``int()`` error;
-* a negative seed is an error (the reference silently replaced it by a
-  time-based seed);
-* tokens without effect (``l.25`` without lure signs, ``L.25`` without a lure
-  probability) are accepted, as in the reference, but emit a
-  :class:`~amaze.errors.MazeStringWarning`;
-* so do ``U`` and ``R`` tokens with trailing characters (``Ux``, ``UR``,
-  ``R90``): the reference reads them by their first letter and ignores the
-  rest, and so do we, but the rest is named in the warning (``UR`` is
-  unicursive and rotated; ``U_R`` was probably meant).
+Strings the reference generates a maze from give the same maze here; bad
+input is treated otherwise: a malformed token (a negative seed too) raises
+:class:`~amaze.errors.MazeStringError` (a ``ValueError``) naming the token, and
+tokens without effect (``l.25`` without lure signs) or with trailing characters
+(``Ux``, ``UR``) are accepted but emit a :class:`~amaze.errors.MazeStringWarning`
+(the differences are listed in ``docs/reference-behaviour.md`` §10).
 
 A string without a seed gets a fresh random one (from the operating system's
 entropy, not the clock, so two mazes made in the same millisecond differ); the

@@ -34,7 +34,9 @@ tagged forms, each an object with one ``$`` key:
 ``T`` is a *tag*, ``module:qualname``, looked up in the :class:`StateCodec`
 that the caller hands to both functions: the classes and values its code
 registered, and nothing else. A tag outside it is refused; the reader never
-imports a module or follows a dotted name. An object is rebuilt as pickle
+imports a module or follows a dotted name. A tag of a module renamed since
+(:data:`~amaze.runs.state_document.RENAMED_MODULES`) is read as the new
+module's. An object is rebuilt as pickle
 rebuilds it, without calling its class with anything from the file: an empty
 instance (``cls.__new__(cls)``) whose saved attributes are restored (its
 ``__setstate__``, or its ``__dict__``), and the items of a ``dict`` or
@@ -97,7 +99,7 @@ def curriculum_classes() -> list[type]:
     Both trainers' co-evolution checkpoints hold them.
     """
     # loaded, so that their classes are found
-    import amaze.curriculum.coevolution
+    import amaze.curriculum.maze_population
     import amaze.curriculum.population_selector  # noqa: F401
 
     return [

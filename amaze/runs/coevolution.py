@@ -11,7 +11,7 @@
 
 :class:`CoevolutionRun` is that loop on the shared run lifecycle
 (:mod:`amaze.runs.lifecycle`), with a
-:class:`~amaze.curriculum.coevolution.MazePopulation` beside the learner. A
+:class:`~amaze.curriculum.maze_population.MazePopulation` beside the learner. A
 trainer supplies its step on a batch (:meth:`CoevolutionRun.learn`: one
 generation of a search algorithm, one rollout of SB3), how its agents are
 played on the validation mazes, and what is its own: its learner's state, the
@@ -60,7 +60,7 @@ outside the seconds the budget counts.
   after the last round;
 * ``mazes.csv``: every maze that was ever a member of the population (its
   string, origin, parent, birth, retirement, last scores and difficulty
-  profile; :data:`~amaze.curriculum.coevolution.MAZES_CSV_FIELDS`), written
+  profile; :data:`~amaze.curriculum.maze_population.MAZES_CSV_FIELDS`), written
   with each checkpoint from the checkpointed population;
 * ``population.png``: the members at the end, best score first;
 * ``coevolution.png``: the trainer's figures on the batches, the validation
@@ -87,13 +87,13 @@ from typing import Any, ClassVar
 import numpy as np
 
 from amaze.agents.engine import BatchEngine
-from amaze.curriculum.coevolution import (
+from amaze.curriculum.difficulty import difficulty
+from amaze.curriculum.maze_population import (
     MazePopulation,
     MazePopulationConfig,
     MazeResult,
     mazes_csv,
 )
-from amaze.curriculum.difficulty import difficulty
 from amaze.curriculum.picture import save_population_png
 from amaze.curriculum.validation import unseen_mazes, validation_mazes
 from amaze.evaluation.policy import run_episodes

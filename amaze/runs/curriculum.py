@@ -87,7 +87,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from amaze.curriculum.curators import Candidate, History, StageRecord
-from amaze.curriculum.learner import Learner, branch_seed
+from amaze.curriculum.learner import Learner, SessionWatch, branch_seed
 from amaze.curriculum.regimes import (
     branch_allowance,
     branch_seconds,
@@ -193,6 +193,21 @@ class CurriculumRun(CurriculumSummary, Run):
         learner itself never starts a unit its session cannot pay).
         """
         return 1, "one env step"
+
+    def session_watch(
+        self,
+        stage: int,
+        folder: Path,
+        learner: Learner,
+        allowance: tuple[int | None, float | None],
+    ) -> SessionWatch | None:
+        """What a branch of ``stage`` is judged on instead of its own mazes (default: nothing).
+
+        A trainer whose config asks for it (the RL trainer's
+        ``stage_eval_target``) returns a :class:`~amaze.curriculum.learner.SessionWatch`
+        whose ``keep_best`` writes the branch's best agent into ``folder``.
+        """
+        return None
 
     def branch_progress(self, progress: BranchProgress) -> None:
         """Hear how far the branch in training is (a live display overrides this).
@@ -527,12 +542,14 @@ class CurriculumRun(CurriculumSummary, Run):
         }
         learner = self._start_learner(folder, started, parent)
         clock.lap("loading_and_saving")
+        watch = self.session_watch(stage, folder, learner, allowance)
         outcome = learner.train(
             [rotated for maze in training for rotated in rotations(maze)],
             allowance[0],
             budget_seconds=allowance[1],
             checkpoint=lambda: write_folder(folder / "checkpoint", learner.save),
             progress=report,
+            **({} if watch is None else {"watch": watch}),
         )
         clock.skip()  # the learner keeps the seconds of its session, over every resumed part
         write_folder(folder / "agent", learner.save)

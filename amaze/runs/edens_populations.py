@@ -24,7 +24,7 @@ so far, whichever alternative played it). A budget spent in the middle of an
 epoch ends the run there, with the champion as its agent.
 
 Alternatives share the population's generated mazes
-(:meth:`~amaze.curriculum.coevolution.MazePopulation.branch`): a maze is
+(:meth:`~amaze.curriculum.maze_population.MazePopulation.branch`): a maze is
 generated and compiled once, whichever alternative meets it.
 
 **Outputs**, besides the co-evolution loop's: ``epochs.jsonl``, one JSON
@@ -59,7 +59,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from amaze.curriculum.coevolution import MazePopulation
+from amaze.curriculum.maze_population import MazePopulation
 from amaze.curriculum.population_selector import (
     Outcome,
     SelectorConfig,

@@ -73,6 +73,9 @@ __all__ = [
 
 CONFIG_FILE = "config.json"
 SUMMARY_FILE = "summary.json"
+#: What ``summary.json`` holds of the final agent on the paper's suite (``paper_suite``),
+#: besides the standard suite's figures at its top level.
+PAPER_SUITE_FIGURES = ("success_rate", "normalized_reward", "pretty_reward")
 #: Keys only one training command's ``config.json`` holds: a run folder of the
 #: other command is named as such, with the command that resumes it.
 COMMAND_KEYS = {
@@ -461,12 +464,15 @@ class Run(ABC):
         from amaze.agents.trajectories import save_trajectory_png
         from amaze.evaluation.policy import record_episode
         from amaze.evaluation.protocol import Evaluator
+        from amaze.evaluation.suite import paper_suite
 
         agent = self.final_agent()
         self.save_agent(agent, self.out / self.agent_file)
         self.anytime.finish(self.spent(), agent)
         robot = self.config.robot
         summary = Evaluator(robot).evaluate(agent).summary()
+        paper = Evaluator(robot, paper_suite(), inputs=False).evaluate(agent).summary()
+        summary["paper_suite"] = {key: paper[key] for key in PAPER_SUITE_FIGURES}
         summary.update(self.figures())
         summary.update(self.agent_figures(), agent=self.agent_file)
         summary["anytime"] = self.anytime.figures()

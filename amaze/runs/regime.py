@@ -19,12 +19,12 @@ from typing import Any, ClassVar
 
 from amaze.agents.robot import as_robot
 from amaze.curriculum.advice import NOT_ADVISORS
-from amaze.curriculum.coevolution import CoevolutionError, MazePopulationConfig
 from amaze.curriculum.curators import (
     CuratorContext,
     curator_names,
 )
 from amaze.curriculum.interpolation import MAX_STAGES
+from amaze.curriculum.maze_population import CoevolutionError, MazePopulationConfig
 from amaze.curriculum.population_selector import SelectorConfig
 from amaze.curriculum.regimes import (
     COEVOLUTION_REGIMES,
@@ -363,8 +363,10 @@ class RegimeConfig(RunConfig):
             )
         if self.eval_mazes is None:
             self.eval_mazes = list(self.default_eval_mazes)
-        if self.agent_rule == "best-eval" and not self.eval_mazes:
-            raise self.error("agent_rule 'best-eval' needs eval_mazes (--eval-mazes A,B,...)")
+        if self.agent_rule in ("best-eval", "best-eval-reward") and not self.eval_mazes:
+            raise self.error(
+                f"agent_rule {self.agent_rule!r} needs eval_mazes (--eval-mazes A,B,...)"
+            )
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
@@ -423,7 +425,7 @@ class RegimeConfig(RunConfig):
     def coevolution_defaults(self) -> dict[str, Any]:
         """The maze population options this trainer fills in when the config leaves them out.
 
-        None here: :class:`~amaze.curriculum.coevolution.MazePopulationConfig`'s
+        None here: :class:`~amaze.curriculum.maze_population.MazePopulationConfig`'s
         own defaults apply. A trainer whose batch follows from its own options
         (RL: one environment per rotation of each batch maze) gives them.
         """
@@ -440,7 +442,7 @@ class RegimeConfig(RunConfig):
         coevolution regimes the trainer's defaults (:meth:`coevolution_defaults`)
         fill what ``coevolution`` leaves out (``config.json`` then records
         them); the whole is a valid
-        :class:`~amaze.curriculum.coevolution.MazePopulationConfig`, which the
+        :class:`~amaze.curriculum.maze_population.MazePopulationConfig`, which the
         robot (``shapes`` need an image robot) and the trainer's options must fit
         (:meth:`check_coevolution_options`); in ``edens-populations`` the
         ``selector`` is a valid

@@ -23,12 +23,14 @@ import numpy as np
 
 __all__ = [
     "MAX_STATE_DEPTH",
+    "RENAMED_MODULES",
     "ArrayLookup",
     "CheckpointError",
     "Refused",
     "StateCodec",
     "StateReader",
     "StateWriter",
+    "current_tag",
     "package_classes",
     "simplified",
     "special_reduce",
@@ -45,6 +47,13 @@ _BIT_GENERATORS: dict[str, type] = {
 } | {"SFC64": np.random.SFC64}
 #: Array element kinds a checkpoint may hold: booleans and numbers.
 _ARRAY_KINDS = frozenset("biufc")
+#: Modules renamed since checkpoints named them: old name -> new name. A tag of an old
+#: module is read as the same qualname in the new one (run folders written before the
+#: rename resume).
+RENAMED_MODULES: dict[str, str] = {
+    "amaze.curriculum.coevolution": "amaze.curriculum.maze_population",
+    "rl_baselines.jax_coevolution": "rl_baselines.jax.coevolution",
+}
 
 
 class CheckpointError(TypeError):
@@ -54,6 +63,13 @@ class CheckpointError(TypeError):
 def tag(value: Any) -> str:
     """The tag of a class, function or enumeration: ``module:qualname``."""
     return f"{value.__module__}:{value.__qualname__}"
+
+
+def current_tag(name: str) -> str:
+    """``name``, its module renamed as :data:`RENAMED_MODULES` says (unchanged otherwise)."""
+    module, colon, qualname = name.partition(":")
+    renamed = RENAMED_MODULES.get(module)
+    return f"{renamed}:{qualname}" if colon and renamed is not None else name
 
 
 def special_reduce(cls: type) -> bool:
@@ -420,12 +436,13 @@ class StateReader:
 
     def read_constant(self, node: dict) -> Any:
         name = node.get("$constant")
-        if name not in self.codec.constants:
+        current = current_tag(name) if isinstance(name, str) else None
+        if current not in self.codec.constants:
             raise Refused(f"names {name!r}, which a checkpoint may not hold")
-        return self.codec.constants[name]
+        return self.codec.constants[current]
 
     def registered(self, name: Any, enumeration: bool) -> type:
-        cls = self.codec.classes.get(name) if isinstance(name, str) else None
+        cls = self.codec.classes.get(current_tag(name)) if isinstance(name, str) else None
         if cls is None or issubclass(cls, enum.Enum) != enumeration:
             kind = "enumeration" if enumeration else "class"
             raise Refused(f"names the {kind} {name!r}, which a checkpoint may not hold")

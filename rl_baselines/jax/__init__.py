@@ -27,7 +27,14 @@ Modules:
 * :mod:`~rl_baselines.jax.storage`: a trainer saved to a folder and loaded back;
 * :mod:`~rl_baselines.jax.policy`: :class:`NumpyPolicy` for the evaluation protocol (no JAX);
 * :mod:`~rl_baselines.jax.agent`: :class:`JaxAgent`, a run's agent (numpy, saved as SB3's);
-* :mod:`~rl_baselines.jax.sb3_io`: SB3 zips out and in (imports torch and SB3).
+* :mod:`~rl_baselines.jax.sb3_io`: SB3 zips out and in (imports torch and SB3);
+* :mod:`~rl_baselines.jax.run`: :class:`~rl_baselines.jax.run.JaxRun`, the direct regime;
+* :mod:`~rl_baselines.jax.learner`: :class:`~rl_baselines.jax.learner.JaxLearner` (curricula);
+* :mod:`~rl_baselines.jax.coevolution`: :class:`~rl_baselines.jax.coevolution.JaxCoevolutionRun`.
+
+The last three import the rest of :mod:`rl_baselines` (its config and runs),
+which imports this package: they are imported by their module name, never
+from here.
 
 Names are loaded on first use, so ``from rl_baselines.jax.policy import
 NumpyPolicy`` loads neither JAX nor torch.

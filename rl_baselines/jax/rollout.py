@@ -3,7 +3,7 @@
 Each step (``OnPolicyAlgorithm.collect_rollouts``, ``common/on_policy_algorithm.py``):
 the policy gives logits and values of the last observations; actions are drawn
 from the categorical distribution (an explicit key per step); all environments
-step together (``vmap`` of :meth:`amaze.envs.jax.MazeEnv.step`, which restarts
+step together (``vmap`` of :meth:`amaze.envs.jax.JaxMazeEnv.step`, which restarts
 an ended episode in the same step); an episode that ends by its deadline
 without success (``TimeLimit.truncated`` in :class:`rl_baselines.vec_env.SB3VecEnv`)
 gets SB3's bootstrap ``reward += gamma * V(final observation)`` (SB3 issue #633);
@@ -30,7 +30,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from amaze.envs.jax import MazeEnv, MazeParams, MazeState
+from amaze.envs.jax import JaxMazeEnv, MazeParams, MazeState
 from rl_baselines.jax.hyperparameters import Hyperparameters
 from rl_baselines.jax.networks import (
     Params,
@@ -85,13 +85,13 @@ def _gather(maze_params: MazeParams, index: jax.Array) -> MazeParams:
     return jax.tree.map(lambda table: table[index], maze_params)
 
 
-def _restart(env: MazeEnv, params: MazeParams) -> tuple[MazeState, jax.Array]:
+def _restart(env: JaxMazeEnv, params: MazeParams) -> tuple[MazeState, jax.Array]:
     """The first state and observation of an episode in each environment's maze."""
     state = jax.vmap(env.initial_state)(params)
     return state, jax.vmap(env.observe)(state, params)
 
 
-def reset_envs(env: MazeEnv, maze_params: MazeParams, n_envs: int) -> EnvCarry:
+def reset_envs(env: JaxMazeEnv, maze_params: MazeParams, n_envs: int) -> EnvCarry:
     """Every environment at the start of an episode: env ``k`` in maze ``k % M``.
 
     As ``SB3VecEnv.reset``.
@@ -104,7 +104,7 @@ def reset_envs(env: MazeEnv, maze_params: MazeParams, n_envs: int) -> EnvCarry:
 
 
 def _next_mazes(
-    env: MazeEnv,
+    env: JaxMazeEnv,
     maze_params: MazeParams,
     params: MazeParams,
     carry: EnvCarry,
@@ -154,7 +154,7 @@ def _episode_sums(info: dict[str, jax.Array], done: jax.Array) -> EpisodeSums:
 
 
 def collect_rollout(
-    env: MazeEnv,
+    env: JaxMazeEnv,
     spec: PolicySpec,
     hp: Hyperparameters,
     policy: Params,

@@ -34,7 +34,7 @@ import numpy as np
 
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import as_robot
-from amaze.envs.jax import MazeEnv, MazeParams, make_batch
+from amaze.envs.jax import JaxMazeEnv, MazeParams, make_batch
 from amaze.errors import AmazeError
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
@@ -127,7 +127,7 @@ class RolloutStats(NamedTuple):
 class Static:
     """What the compiled functions specialise on: environment, policy, hyperparameters."""
 
-    env: MazeEnv
+    env: JaxMazeEnv
     spec: PolicySpec
     hp: Hyperparameters
 
@@ -308,7 +308,7 @@ class JaxTrainer:
     ) -> None:
         try:
             parsed = as_robot(robot)
-            env = MazeEnv(parsed)
+            env = JaxMazeEnv(parsed)
         except AmazeError as error:
             raise RLConfigError(f"robot {robot!r}: {error}") from None
         hp = checked_hyperparameters(

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
+from amaze.curriculum.maze_population import MAZES_CSV_FIELDS
 from amaze.curriculum.validation import reserved_seeds
 from amaze.maze.spec import MazeSpec
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint

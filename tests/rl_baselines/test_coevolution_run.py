@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from amaze.curriculum.coevolution import MAZES_CSV_FIELDS
+from amaze.curriculum.maze_population import MAZES_CSV_FIELDS
 from amaze.maze import as_mazes, rotations
 from amaze.runs.checkpoint import StateCodec, curriculum_classes, read_checkpoint, write_checkpoint
 from rl_baselines import RLConfigError

@@ -7,7 +7,7 @@ co-evolution regimes.
 * a direct run killed mid-training (an exception after its checkpoints) and
   resumed ends with the very agent, bit for bit, of one never interrupted;
 * an EDHuCAT run (careful curator, 2 stages) does the same, through the
-  learner protocol (:class:`~rl_baselines.jax_learner.JaxLearner`);
+  learner protocol (:class:`~rl_baselines.jax.learner.JaxLearner`);
 * a co-evolution run writes its folder, compiles once for mazes of every
   size, and killed and resumed ends with the very agent, population and
   progress of one never interrupted;
@@ -32,9 +32,9 @@ from amaze.cli.main import main as amaze_main
 from rl_baselines.agent import SB3Agent
 from rl_baselines.cli import main
 from rl_baselines.curriculum import JaxCurriculumRun
+from rl_baselines.jax.coevolution import JaxCoevolutionRun
+from rl_baselines.jax.run import JaxRun
 from rl_baselines.jax.trainer import JaxTrainer, run_rollouts
-from rl_baselines.jax_coevolution import JaxCoevolutionRun
-from rl_baselines.jax_run import JaxRun
 from rl_baselines.train import SB3Run, TrainConfig, resume
 
 pytestmark = pytest.mark.slow

@@ -8,47 +8,29 @@ it; an import-linter contract in ``pyproject.toml`` keeps it so)::
     obs, state = env.reset(key, params)
     obs, state, reward, terminated, truncated, info = env.step(key, state, action, params)
 
-:class:`~amaze.envs.jax.env.MazeEnv` has gymnax 1.0's functional interface and
-auto-reset, and reproduces the batch engine's episodes (observations, rewards,
-deadlines, success, collisions, backward steps; the tests compare both step by
-step on hundreds of mazes). Its params (:class:`~amaze.envs.jax.params.MazeParams`)
-are one maze's tables, built from the engine's (:mod:`amaze.agents.tables`).
-Mazes of different sizes are padded to one shape: :func:`make_batch` gives
-the params of many mazes with a leading axis, agent ``k`` playing maze
-``k % len(mazes)`` as in the vector env, and :func:`stack_params` pads and
-stacks params made apart; ``jax.vmap(env.step)`` then steps them all, and a
-new batch of the same padded size runs without recompiling. A PureJaxRL-style
-random rollout of 1024 environments over mixed-size mazes::
-
-    env, params = make_batch(["M1_5x5_C1", "M2_12x9_C1_l.25_L.25", "M3_20x20_C1_t.5_T.5"],
-                             robot="DD", num_envs=1024)  # env k plays maze k % 3
-    obs, state = jax.vmap(env.reset)(jax.random.split(jax.random.key(0), 1024), params)
-    def one_step(state, key):
-        keys = jax.random.split(key, 1025)  # one for the actions, one per environment
-        actions = jax.random.randint(keys[0], (1024,), 0, env.action_space(params).n)
-        obs, state, reward, term, trunc, info = jax.vmap(env.step)(keys[1:], state, actions, params)
-        return state, (reward, term | trunc, info["normalized_reward"])
-    keys = jax.random.split(jax.random.key(1), 500)  # 500 steps
-    state, (rewards, dones, rbar) = jax.lax.scan(one_step, state, keys)
+:class:`~amaze.envs.jax.env.JaxMazeEnv` has gymnax 1.0's functional interface
+and auto-reset, and reproduces the batch engine's episodes. Its params
+(:class:`~amaze.envs.jax.params.MazeParams`) are one maze's tables. Mazes of
+different sizes are padded to one shape: :func:`make_batch` gives the params
+of many mazes with a leading axis, agent ``k`` playing maze ``k % len(mazes)``
+as in the vector env, and :func:`stack_params` pads and stacks params made
+apart; ``jax.vmap(env.step)`` then steps them all, and a new batch of the same
+padded size runs without recompiling. ``docs/jax.md`` has a PureJaxRL-style
+rollout of 1024 environments over mixed-size mazes.
 
 Adapters, loaded on first use: :class:`GymnaxMazeEnv` (``amaze.envs.jax.gymnax_env``),
-a gymnax ``Environment`` for gymnax's wrappers and PureJaxRL-style code, and
-:class:`UEDMazeEnv` (``amaze.envs.jax.jaxued_env``), jaxued's
-``UnderspecifiedEnv`` whose levels are params.
+a gymnax ``Environment``, and :class:`UEDMazeEnv` (``amaze.envs.jax.jaxued_env``),
+jaxued's ``UnderspecifiedEnv`` whose levels are params.
 
 **Scope.** Robots with discrete actions: ``DD`` (8 floats) and the hybrid
 robots ``H5`` ... ``H65`` (``(1, v, v)`` uint8 images, channel first, as
-AMaze-v0). Continuous robots (``CC``) are not supported here (their physics
-has per-step float branching that the batch engine runs in numba); asking for
-one raises :class:`~amaze.errors.OptionError`.
+AMaze-v0). Continuous robots (``CC``) are not supported here; asking for one
+raises :class:`~amaze.errors.OptionError`.
 
-**Installing.** ``pip install "amaze-evo[jax]"`` installs JAX's CPU wheels from
-PyPI (``make`` installs them, at the versions of ``constraints.txt``). For an
-NVIDIA GPU, install JAX's CUDA build instead, at the same version as the
-``jax`` installed: ``pip install "jax[cuda12]==<that version>"`` (Linux x86-64
-or aarch64, CUDA 12 drivers); nothing in amaze-evo requires it, and the same
-code runs on either. The adapters need gymnax (1.0.1) and jaxued (0.0.1):
-``pip install "amaze-evo[jax-adapters]"``.
+**Installing.** ``pip install "amaze-evo[jax]"`` (JAX's CPU wheels), and
+``"amaze-evo[jax-adapters]"`` for gymnax (1.0.1) and jaxued (0.0.1). For an
+NVIDIA GPU, install JAX's CUDA build at the version of the ``jax`` installed:
+``pip install "jax[cuda12]==<that version>"``; the same code runs on either.
 """
 
 from __future__ import annotations
@@ -61,7 +43,7 @@ import jax.numpy as jnp
 
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import Robot
-from amaze.envs.jax.env import MazeEnv, MazeState
+from amaze.envs.jax.env import JaxMazeEnv, MazeState, _renamed_maze_env
 from amaze.envs.jax.params import (
     MazeLike,
     MazeParams,
@@ -77,7 +59,7 @@ from amaze.validation import check_integer
 
 __all__ = [
     "GymnaxMazeEnv",
-    "MazeEnv",
+    "JaxMazeEnv",
     "MazeParams",
     "MazeState",
     "UEDMazeEnv",
@@ -100,7 +82,7 @@ def make(
     deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
     max_cells: int | None = None,
     max_codes: int | None = None,
-) -> tuple[MazeEnv, MazeParams]:
+) -> tuple[JaxMazeEnv, MazeParams]:
     """``(env, params)`` of one maze, as ``gymnax.make`` gives them.
 
     The reward is AMaze-v0's (the reference's per-step reward) and the deadline
@@ -119,7 +101,7 @@ def make(
     """
     if isinstance(maze, Sequence) and not isinstance(maze, str):
         raise OptionError(f"make takes one maze, not {type(maze).__name__}: use make_batch")
-    env = MazeEnv(robot)
+    env = JaxMazeEnv(robot)
     params = compile_params(
         [maze],
         env.robot,
@@ -138,13 +120,13 @@ def make_batch(
     deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
     max_cells: int | None = None,
     max_codes: int | None = None,
-) -> tuple[MazeEnv, MazeParams]:
+) -> tuple[JaxMazeEnv, MazeParams]:
     """``(env, params)`` of ``num_envs`` environments (default: one per maze), for ``vmap``.
 
     Environment ``k`` plays maze ``k % len(mazes)`` (as AMaze-v0's vector env);
     the params have a leading axis of ``num_envs``, padded to one size.
     """
-    env = MazeEnv(robot)
+    env = JaxMazeEnv(robot)
     params = compile_params(
         mazes, env.robot, deadline_factor=deadline_factor, max_cells=max_cells, max_codes=max_codes
     )
@@ -158,7 +140,13 @@ def make_batch(
 
 
 def __getattr__(name: str) -> Any:
-    """The adapters, imported on first use (they need gymnax and jaxued)."""
+    """The adapters, imported on first use (they need gymnax and jaxued), and ``MazeEnv``.
+
+    ``MazeEnv`` is the old name of :class:`JaxMazeEnv`, given with a
+    :class:`DeprecationWarning` until the next release.
+    """
     if name in _LAZY:
         return getattr(import_module(_LAZY[name]), name)
+    if name == "MazeEnv":
+        return _renamed_maze_env(__name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

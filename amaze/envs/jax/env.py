@@ -1,20 +1,15 @@
 """The functional AMaze environment in JAX: gymnax 1.0's interface, the engine's episodes.
 
-:class:`MazeEnv` is stateless: ``reset(key, params) -> (obs, state)`` and
+:class:`JaxMazeEnv` is stateless: ``reset(key, params) -> (obs, state)`` and
 ``step(key, state, action, params) -> (obs, state, reward, terminated,
 truncated, info)``, with the maze in ``params``
 (:class:`~amaze.envs.jax.params.MazeParams`) and the robot in the env. Every
 method is a pure function of arrays, with no Python control flow on traced
 values, so it can be jitted, vmapped over environments (and over params, one
 maze per environment) and scanned over steps. The environment draws no random
-number: keys are taken for the interface and ignored.
-
-A step is a few look-ups (see :mod:`amaze.envs.jax.params`): the move table
-gives the new position, hence the new cell and the code of what the robot sees
-there; the observation is one row of a small per-maze table (``DD``: the 8
-floats of that code and arrival side; ``H``: the code's tile, with the origin
-marker on the arrival side); rewards are constants selected by the outcome.
-Everything else is int32 arithmetic on the state (:class:`MazeState`).
+number: keys are taken for the interface and ignored. A step is a few table
+look-ups (:mod:`amaze.envs.jax.params`) and int32 arithmetic on the state
+(:class:`MazeState`).
 
 Semantics are the batch engine's (``amaze.agents.engine``; reference §4.3-4.6,
 §5.1-5.2): a move into a wall is a collision (the robot stays); moving back
@@ -33,25 +28,18 @@ statistics of the engine's ``EndedEpisodes`` and the vector env's
 (``l``), ``cumulative_reward``, ``pretty_reward`` and ``normalized_reward``
 (the paper's R̄). ``step_env`` is the same step without the restart.
 
-Floats are float32 (JAX's default; the engine's are float64):
-
-* rewards are the float32 nearest the engine's (``-1``, ``-1.1``, ``-1.2``,
-  ``2l - 2``): equal once the engine's are rounded to float32;
-* the episode counters are exact integers; the return and R̄ are computed from
-  them as exact rationals, each rounded once to float32. The engine's float64
-  values carry their own rounding errors (its return is a running sum of
-  inexact rewards: a return of exactly 0 reads -2.8e-14 there), so the two
-  agree within one float32 ulp of the engine's value (1e-9 near 0), and are
-  equal after rounding in all but a few in ten thousand episodes;
-* ``pretty_reward`` is the reference's rescale of the return rounded half to
-  even to 3 decimals: equal to the engine's but at (near-)ties of that
-  rounding, where either side's rounding errors may tip it by 0.001.
-
-These bounds are checked on hundreds of mazes by ``tests/amaze/envs/test_jax_vs_engine.py``.
+Floats are float32 (the engine's are float64): rewards are the float32 nearest
+the engine's; the episode counters are exact integers, and the return and R̄
+are computed from them as exact rationals rounded once, so they agree with the
+engine's (which carry float64 rounding errors) within one float32 ulp of its
+value; ``pretty_reward`` (rounded to 3 decimals) is the engine's but at
+near-ties of that rounding, where it may differ by 0.001. These bounds are
+checked on hundreds of mazes by ``tests/amaze/envs/test_jax_vs_engine.py``.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from functools import cache, partial
 from typing import Any, NamedTuple
@@ -151,11 +139,11 @@ def _marker_pixels(vision: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class MazeEnv:
+class JaxMazeEnv:
     """AMaze for one robot with discrete actions, as a functional JAX environment.
 
     Made by :func:`~amaze.envs.jax.make` or :func:`~amaze.envs.jax.make_batch`
-    with its params; ``MazeEnv("H15")`` works too. Equal robots give equal
+    with its params; ``JaxMazeEnv("H15")`` works too. Equal robots give equal
     (and equally hashed) environments, so jitted functions taking the env as a
     static argument compile once per robot.
     """
@@ -366,3 +354,21 @@ class MazeEnv:
         """int32 ``(..., 2)``: the robot's cell ``(i, j)`` (``i`` east, ``j`` north)."""
         cell = state.position >> POSITION_SHIFT
         return jnp.stack([cell // params.height, cell % params.height], axis=-1)
+
+
+def _renamed_maze_env(module: str) -> type[JaxMazeEnv]:
+    """:class:`JaxMazeEnv` asked for by its old name in ``module``, with a DeprecationWarning."""
+    warnings.warn(
+        f"{module}.MazeEnv is renamed JaxMazeEnv (MazeEnv is the gymnasium env's name);"
+        " the old name goes in the next release",
+        DeprecationWarning,
+        stacklevel=3,  # the caller of the module's __getattr__
+    )
+    return JaxMazeEnv
+
+
+def __getattr__(name: str) -> Any:
+    """``MazeEnv``, the old name of :class:`JaxMazeEnv`, until the next release."""
+    if name == "MazeEnv":
+        return _renamed_maze_env(__name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

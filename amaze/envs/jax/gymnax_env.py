@@ -1,13 +1,13 @@
 """AMaze as a gymnax ``Environment``, for gymnax's wrappers and PureJaxRL-style code.
 
 :class:`GymnaxMazeEnv` subclasses ``gymnax.environments.environment.Environment``
-(gymnax 1.0) around :class:`~amaze.envs.jax.env.MazeEnv`: the same params
+(gymnax 1.0) around :class:`~amaze.envs.jax.env.JaxMazeEnv`: the same params
 (:class:`~amaze.envs.jax.params.MazeParams`, one maze each), the same episodes,
 gymnax's spaces (``Discrete(4)``; ``Box(-1, 1, (8,), float32)`` or
 ``Box(0, 255, (1, v, v), uint8)``) and ``default_params`` (the maze it was made
 with). It implements gymnax's hooks (``step_env``, ``reset_env``,
 ``is_truncated``: the deadline), so gymnax's own ``Environment.step`` runs it,
-and overrides ``step`` with :meth:`MazeEnv.step`, which restarts an ended
+and overrides ``step`` with :meth:`JaxMazeEnv.step`, which restarts an ended
 episode without computing a second observation; both return the same values
 and the same ``info`` (gymnax's ``terminated``, ``truncated``,
 ``final_observation``, plus the episode figures of :mod:`amaze.envs.jax.env`).
@@ -31,7 +31,7 @@ from gymnax.environments import environment, spaces
 
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import Robot, as_robot
-from amaze.envs.jax.env import MazeEnv, MazeState
+from amaze.envs.jax.env import JaxMazeEnv, MazeState
 from amaze.envs.jax.params import MazeParams, compile_params, unstack
 from amaze.errors import AmazeError, OptionError
 from amaze.maze.maze import Maze
@@ -77,7 +77,7 @@ class GymnaxMazeEnv(environment.Environment):
     ) -> None:
         super().__init__()
         _refuse_swapped(robot, maze)
-        self.maze_env = MazeEnv(robot)
+        self.maze_env = JaxMazeEnv(robot)
         self._default_params = unstack(
             compile_params([maze], self.maze_env.robot, deadline_factor=deadline_factor)
         )
@@ -128,7 +128,7 @@ class GymnaxMazeEnv(environment.Environment):
         action: Any,
         params: MazeParams | None = None,
     ) -> tuple[jax.Array, MazeState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
-        """:meth:`MazeEnv.step`: gymnax's step and auto-reset, one observation per step."""
+        """:meth:`JaxMazeEnv.step`: gymnax's step and auto-reset, one observation per step."""
         return self.maze_env.step(
             key, state, action, self.default_params if params is None else params
         )

@@ -13,7 +13,7 @@ env's params (here empty, :class:`UEDParams`).
 
 ``step`` returns jaxued's five values, ``(obs, state, reward, done, info)``,
 with ``done = terminated | truncated`` and the same ``info`` as
-:meth:`~amaze.envs.jax.env.MazeEnv.step_env` (``terminated``, ``truncated``
+:meth:`~amaze.envs.jax.env.JaxMazeEnv.step_env` (``terminated``, ``truncated``
 and the episode figures).
 
 Versions: jaxued 0.0.1 (its only PyPI release, March 2025) calls
@@ -34,7 +34,7 @@ from gymnax.environments import spaces
 from jaxued.environments.underspecified_env import EnvParams, UnderspecifiedEnv
 
 from amaze.agents.robot import Robot
-from amaze.envs.jax.env import MazeEnv, MazeState
+from amaze.envs.jax.env import JaxMazeEnv, MazeState
 from amaze.envs.jax.params import MazeParams
 
 
@@ -55,7 +55,7 @@ class UEDMazeEnv(UnderspecifiedEnv):
     """AMaze for one robot with discrete actions, levels being maze params (see the module)."""
 
     def __init__(self, robot: Robot | str = "DD") -> None:
-        self.maze_env = MazeEnv(robot)
+        self.maze_env = JaxMazeEnv(robot)
 
     @property
     def default_params(self) -> UEDParams:

@@ -1,6 +1,6 @@
 """The maze tables of the JAX environment: one maze per params, padded into batches.
 
-:class:`MazeParams` holds everything a step of :class:`~amaze.envs.jax.env.MazeEnv`
+:class:`MazeParams` holds everything a step of :class:`~amaze.envs.jax.env.JaxMazeEnv`
 reads about one maze, built from the batch engine's tables
 (:func:`amaze.agents.tables.compile_mazes`), so that both run on the same
 precomputed data:

@@ -66,7 +66,7 @@ def test_the_progress_plot_renders_with_and_without_validation(tmp_path: Path) -
 
 
 def test_a_maze_population_renders_best_score_first(tmp_path: Path) -> None:
-    from amaze.curriculum.coevolution import (
+    from amaze.curriculum.maze_population import (
         BatchMaze,
         MazePopulation,
         MazePopulationConfig,

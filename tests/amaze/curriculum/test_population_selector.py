@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from amaze.curriculum.coevolution import (
+from amaze.curriculum.maze_population import (
     CoevolutionError,
     MazePopulation,
     MazePopulationConfig,

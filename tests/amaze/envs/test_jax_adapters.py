@@ -9,7 +9,7 @@ import pytest
 from gymnax.environments.environment import Environment
 from gymnax.wrappers.purerl import FlattenObservationWrapper, LogWrapper
 
-from amaze.envs.jax import GymnaxMazeEnv, MazeEnv, UEDMazeEnv, make_batch
+from amaze.envs.jax import GymnaxMazeEnv, JaxMazeEnv, UEDMazeEnv, make_batch
 from amaze.envs.jax.gymnax_env import make_gymnax
 
 MAZES = ["M1_5x5_C1", "M2_12x9_SE_C1_l.25_L.25", "M3_7x3_U", "M4_4x4_C1_t.5_T.5"]
@@ -105,7 +105,7 @@ def test_jaxued_level_sampler_cycles_over_amaze_levels(tree_map_alias):
     strings = [f"M{s}_{4 + s % 6}x{3 + s % 5}_C1_l.25_L.25" for s in range(24)]
     _, levels = make_batch(strings, "DD", max_cells=100, max_codes=64)
     env = AutoReplayWrapper(UEDMazeEnv("DD"))
-    plain = MazeEnv("DD")
+    plain = JaxMazeEnv("DD")
     sampler = LevelSampler(capacity=8, replay_prob=0.5, minimum_fill_ratio=0.5)
     buffer = sampler.initialize(jax.tree.map(lambda x: x[0], levels), {"max_return": -jnp.inf})
     n, steps = 16, 150

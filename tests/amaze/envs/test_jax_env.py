@@ -6,6 +6,7 @@ Episodes themselves are compared with the batch engine's in
 
 from __future__ import annotations
 
+import importlib
 import re
 import subprocess
 import sys
@@ -19,7 +20,7 @@ import pytest
 
 from amaze.agents.engine import BatchEngine
 from amaze.agents.robot import RobotStringError
-from amaze.envs.jax import MazeEnv, make, make_batch, padded_size, stack_params
+from amaze.envs.jax import JaxMazeEnv, make, make_batch, padded_size, stack_params
 from amaze.errors import AmazeError, MazeStringError, OptionError
 from amaze.evaluation.controllers import goal_directions
 from amaze.maze.directions import OFFSETS
@@ -30,7 +31,7 @@ KEY = jax.random.key(0)
 
 
 @partial(jax.jit, static_argnums=(0, 3))
-def rollout(env: MazeEnv, params, key: jax.Array, steps: int):
+def rollout(env: JaxMazeEnv, params, key: jax.Array, steps: int):
     """Random moves in every environment of a params batch: rewards, ends, R̄, observations."""
     n = params.start.shape[0]
     _, state = jax.vmap(env.reset)(jax.random.split(key, n), params)
@@ -71,7 +72,7 @@ def test_make_batch_assigns_maze_k_modulo_the_number_of_mazes():
 
 
 def test_stack_params_pads_mazes_of_different_sizes():
-    env = MazeEnv("H11")
+    env = JaxMazeEnv("H11")
     singles = [make(m, "H11")[1] for m in MAZES]
     assert len({padded_size(p) for p in singles}) > 1
     stacked = stack_params(singles)
@@ -179,7 +180,7 @@ def test_a_rollout_ends_episodes_and_scores_them():
         (lambda: make("M4_10x10_C1", "X5"), RobotStringError, "X5"),
         (lambda: make("M4_10x10_C1", "CC15"), OptionError, "CC15"),
         (lambda: make("M4_10x10_C1", "C11"), OptionError, "C11"),
-        (lambda: MazeEnv("CC11"), OptionError, "CC11"),
+        (lambda: JaxMazeEnv("CC11"), OptionError, "CC11"),
         (lambda: make("M4_10x10_C1", "DD", deadline_factor=0), OptionError, "deadline_factor"),
         (lambda: make(["M4_10x10_C1"], "DD"), OptionError, "make_batch"),
         (lambda: make_batch([], "DD"), OptionError, "at least one maze"),
@@ -201,7 +202,7 @@ def test_bad_input_raises_the_projects_errors(call, error, named):
 
 
 def test_params_of_another_robot_are_refused():
-    env = MazeEnv("H11")
+    env = JaxMazeEnv("H11")
     _, params = make("M1_5x5", "H15")
     with pytest.raises(OptionError, match="robot CD11"):
         env.reset(KEY, params)
@@ -245,22 +246,6 @@ def test_the_check_of_imports_sees_jax():
 # -- documentation --------------------------------------------------------------------------
 
 
-def test_the_module_docstring_rollout_runs():
-    """The PureJaxRL-style example of ``amaze.envs.jax`` (1024 envs, mixed sizes) runs as shown."""
-    import textwrap
-
-    import amaze.envs.jax as module
-
-    doc = module.__doc__
-    start = doc.index("over mixed-size mazes::") + len("over mixed-size mazes::")
-    code = textwrap.dedent(doc[start : doc.index("Adapters, loaded on first use")])
-    namespace = {"jax": jax, "make_batch": make_batch}
-    exec(compile(code, "amaze.envs.jax docstring", "exec"), namespace)
-    rewards, dones, rbar = (np.asarray(namespace[k]) for k in ("rewards", "dones", "rbar"))
-    assert rewards.shape == (500, 1024) and dones.sum() > 1024
-    assert np.all(rbar[dones] <= 1.0) and np.any(rbar[dones] > 0)  # some successes
-
-
 def test_spaces_without_gymnax():
     env, params = make("M4_10x10_C1", "H5")
     obs, _ = env.reset(KEY, params)
@@ -270,7 +255,21 @@ def test_spaces_without_gymnax():
     actions = env.action_space(params)
     assert actions.n == 4 and bool(actions.contains(actions.sample(KEY)))
     assert not bool(actions.contains(jnp.int32(4)))
-    assert MazeEnv("DD").observation_space().shape == (8,)
+    assert JaxMazeEnv("DD").observation_space().shape == (8,)
+
+
+@pytest.mark.parametrize("module", ["amaze.envs.jax", "amaze.envs.jax.env"])
+def test_the_old_name_maze_env_warns_and_gives_jax_maze_env(module: str) -> None:
+    """``MazeEnv``, the JAX env's name until ``JaxMazeEnv``, for one more release."""
+    imported = importlib.import_module(module)
+    with pytest.warns(DeprecationWarning, match=rf"{re.escape(module)}\.MazeEnv is renamed"):
+        old = imported.MazeEnv
+    assert old is JaxMazeEnv
+    with pytest.warns(DeprecationWarning, match="JaxMazeEnv"):
+        exec(f"from {module} import MazeEnv as Old; assert Old is JaxMazeEnv", {"JaxMazeEnv": old})
+    assert "MazeEnv" not in getattr(imported, "__all__", ())
+    with pytest.raises(AttributeError, match="Nothing"):
+        imported.Nothing  # noqa: B018
 
 
 def test_the_documented_random_rollout_runs(capsys: pytest.CaptureFixture[str]) -> None:

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from amaze.agents.engine import BatchEngine
-from amaze.curriculum.coevolution import MAZES_CSV_FIELDS, MazePopulation, MazePopulationConfig
+from amaze.curriculum.maze_population import MAZES_CSV_FIELDS, MazePopulation, MazePopulationConfig
 from amaze.errors import AmazeError
 from amaze.evaluation.controllers import RandomController
 from amaze.evaluation.policy import run_episodes

@@ -21,11 +21,13 @@
   with a run outside 90-110% of its budget is flagged here and marked in
   every table), the final agents on the evaluation set (IQM and 95%
   bootstrap interval), each comparison (curves, profile, probability of
-  improvement of its pairs), the paper's Table 3 from the standard suite
-  with the paper's own numbers beside it (:mod:`experiments.paper`), the
-  paper's pairwise tests (stars only where a test can reach them), the
-  standard-suite figures, how often advised curators took the advice, the
-  runs' parts left out and the compute.
+  improvement of its pairs), the paper's Table 3 from the study's suite
+  (the standard one, or the paper's with ``suite = "paper"``, then input
+  recognition as the paper scored it too) with the paper's own numbers
+  beside it (:mod:`experiments.paper`), the paper's pairwise tests (stars
+  only where a test can reach them), the suite's figures, how often
+  advised curators took the advice, the runs' parts left out and the
+  compute.
 
 The tables are :mod:`experiments.report_tables`'; every one shows its n.
 
@@ -187,8 +189,8 @@ class Findings:
 
 #: How the report names the suite it scores the final agents on (a study's ``suite``).
 SUITE_WORDS = {
-    "standard": "standard evaluation suite",
-    "paper": "paper's evaluation suite (the 18 mazes its evaluation script built)",
+    "standard": "standard evaluation suite (18 mazes x 4 rotations)",
+    "paper": "paper's evaluation suite (the 18 mazes its evaluation script built, x 4 rotations)",
 }
 
 
@@ -206,8 +208,8 @@ def _header(f: Findings) -> list[str]:
         " `summary.json` and `evaluations.csv` files (`runs.csv`). Each run's agent is played"
         " as it trains on one evaluation set (family mazes with new seeds and the training"
         " maze, 4 rotations each; `evaluations.csv`), and its final agent on the"
-        f" {SUITE_WORDS[f.study.suite]} (18 mazes x 4 rotations) and the input-recognition"
-        " test (Table 3); `runs.csv` holds the final agents on both suites.",
+        f" {SUITE_WORDS[f.study.suite]} and the input-recognition test (Table 3);"
+        " `runs.csv` holds the final agents on both suites.",
         "",
     ]
 
@@ -356,9 +358,10 @@ def _tests_section(f: Findings) -> list[str]:
         "## Pairwise tests (the paper's statistics)",
         "",
         "Treatments under the same condition that differ in one factor, compared per"
-        " standard-suite metric with an independent t-test (as the paper) and a Mann-Whitney U"
-        " test, each corrected with Benjamini-Hochberg over the metric's pairs; effect sizes"
-        " Cohen's d and the rank-biserial correlation (first vs second). Stars: * p < 0.05,"
+        f" metric of the {SUITE_WORDS[f.study.suite]} with an independent t-test (as the"
+        " paper) and a Mann-Whitney U test, each corrected with Benjamini-Hochberg over the"
+        " metric's pairs; effect sizes Cohen's d and the rank-biserial correlation (first vs"
+        " second). Stars: * p < 0.05,"
         f" ** < 1e-2, *** < 1e-3, **** < 1e-4, shown only for pairs of at least {MIN_SEEDS}"
         " seeds each. Every pair is in `tests.csv`; the significant ones:",
         "",

@@ -186,11 +186,12 @@ def _row(
 
 
 def scored_on(rows: Sequence[dict[str, Any]], suite: str) -> list[dict[str, Any]]:
-    """``rows`` whose ``success_rate`` and ``normalized_reward`` are those of ``suite``.
+    """``rows`` whose success rate, R̄ and input recognition are those of ``suite``.
 
     The standard suite's are the rows' own; with ``paper`` they become the
-    ``paper_suite_*`` columns (``runs.csv`` keeps both), so every table, test
-    and figure of the report is of the paper's suite.
+    ``paper_suite_*`` columns and ``paper_input_recognition`` (``runs.csv``
+    keeps both), so every table, test and figure of the report scores as the
+    paper did.
     """
     if suite == "standard":
         return list(rows)
@@ -199,6 +200,7 @@ def scored_on(rows: Sequence[dict[str, Any]], suite: str) -> list[dict[str, Any]
             **row,
             "success_rate": row["paper_suite_success_rate"],
             "normalized_reward": row["paper_suite_normalized_reward"],
+            "input_recognition": row["paper_input_recognition"],
         }
         for row in rows
     ]

@@ -176,3 +176,35 @@ def test_the_report_says_how_often_advised_runs_took_the_advice(study_folder: Pa
     section = report.split("## Advice taken")[1].split("## ")[0]
     assert "| interpolation/ppo/steps | 3 | 0.50 | 0.25 |" in section
     assert "direct/" not in section  # treatments without an advisor have no row
+
+
+def test_a_study_on_the_paper_suite_reports_the_paper_suites_figures(tmp_path: Path) -> None:
+    out = tmp_path / "paper"
+    text = STUDY.replace("seeds = 3", 'seeds = 3\nsuite = "paper"')
+    (out).mkdir()
+    (out / STUDY_FILE).write_text(text)
+    folder = StudyFolder(out)
+    for run in parse_study(text).runs:
+        success, rbar, inputs = (
+            values[run.seed] for values in NUMBERS[(run.trainer, run.algorithm)]
+        )
+        summary = {
+            "success_rate": 0.0,  # the standard suite's: not what this report scores
+            "normalized_reward": -9.0,
+            "input_recognition": 0.0,
+            "paper_input_recognition": inputs,
+            "paper_suite": {"success_rate": success, "normalized_reward": rbar},
+            "env_steps": 100_000,
+            "seconds": 10.0,
+        }
+        write_json(folder.run_folder(run) / "summary.json", summary)
+        write_json(folder.run_folder(run) / "config.json", run.config)
+    write_json(out / STATE_FILE, {"runner": None, "running": [], "failed": {}})
+    report = write_report(out).read_text()
+    assert "final agents on the paper's evaluation suite" in report
+    line = next(x for x in report.splitlines() if x.startswith("| Maximum | Success rate"))
+    assert line == "| Maximum | Success rate | 0.3 | **0.9** | 0.1 | *0.7* |"
+    with (out / "runs.csv").open() as handle:
+        row = next(csv.DictReader(handle))
+    assert float(row["success_rate"]) == 0.0  # runs.csv keeps both suites
+    assert float(row["paper_suite_success_rate"]) == 0.10

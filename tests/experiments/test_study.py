@@ -82,6 +82,7 @@ def test_several_robots_make_conditions_of_their_own() -> None:
         ("[options.ppo]\nn_envs = 3\n", "n_envs 3"),
         ("[options.cmaes]\nalgorithm = { population_size = -2 }\n", "population_size"),
         ("[[exclude]]\ntrainer = 'direct'\n", "exclude"),
+        ("suite = 'best'\n", "suite 'best' is not one of standard, paper"),
         ("this is not toml", "not valid TOML"),
     ],
 )

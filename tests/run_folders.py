@@ -140,3 +140,19 @@ class FakeClock:
         for module in modules:
             monkeypatch.setattr(module, "time", self)
         return self
+
+
+def retagged_checkpoint(path: Path, old: str, new: str, out: Path) -> Path:
+    """A copy of checkpoint ``path`` at ``out`` whose class tags of module ``old`` name ``new``.
+
+    What a run folder written before a module was renamed holds (``old`` the
+    current module, ``new`` the former name), or a tag of a module that never was.
+    """
+    with np.load(path) as archive:
+        entries = {name: archive[name] for name in archive.files}
+    text = entries["state"].tobytes().decode("utf-8")
+    assert f"{old}:" in text
+    retagged = text.replace(f"{old}:", f"{new}:")
+    entries["state"] = np.frombuffer(retagged.encode("utf-8"), dtype=np.uint8)
+    np.savez_compressed(out, **entries)
+    return out

@@ -25,6 +25,7 @@ from amaze.curriculum.maze_population import (
 from amaze.curriculum.validation import reserved_seeds
 from amaze.maze.spec import MazeSpec
 from amaze.runs.checkpoint import StateCodec, curriculum_classes, read_checkpoint, write_checkpoint
+from tests.run_folders import retagged_checkpoint
 
 TARGET = "M2000007_20x20_C1_l.25_L.25_t.5_T.5"
 
@@ -260,26 +261,16 @@ def test_a_checkpoint_naming_the_old_module_is_read(tmp_path: Path) -> None:
         population.update(batch, [_result((k + i) % 5 / 4) for i in range(len(batch))])
     codec = StateCodec(curriculum_classes())
     path = write_checkpoint(tmp_path / "state.npz", population, codec)
-    with np.load(path) as archive:
-        entries = {name: archive[name] for name in archive.files}
-    text = entries["state"].tobytes().decode("utf-8")
-    assert "amaze.curriculum.maze_population:MazePopulation" in text
-    old = text.replace("amaze.curriculum.maze_population:", "amaze.curriculum.coevolution:")
-    assert "amaze.curriculum.maze_population" not in old
-    entries["state"] = np.frombuffer(old.encode("utf-8"), dtype=np.uint8)
-    np.savez_compressed(tmp_path / "old.npz", **entries)
-    copy = read_checkpoint(tmp_path / "old.npz", codec, ValueError, MazePopulation)
+    new = "amaze.curriculum.maze_population"
+    old = retagged_checkpoint(path, new, "amaze.curriculum.coevolution", tmp_path / "old.npz")
+    copy = read_checkpoint(old, codec, ValueError, MazePopulation)
     assert type(copy) is MazePopulation
     assert [r.to_row() for r in copy.records] == [r.to_row() for r in population.records]
     assert [b.maze for b in copy.propose()] == [b.maze for b in population.propose()]
     # an old tag of another module is still refused
-    entries["state"] = np.frombuffer(
-        old.replace("amaze.curriculum.coevolution:", "amaze.curriculum.elsewhere:").encode(),
-        dtype=np.uint8,
-    )
-    np.savez_compressed(tmp_path / "other.npz", **entries)
+    other = retagged_checkpoint(path, new, "amaze.curriculum.elsewhere", tmp_path / "other.npz")
     with pytest.raises(ValueError, match="elsewhere:MazePopulation"):
-        read_checkpoint(tmp_path / "other.npz", codec, ValueError, MazePopulation)
+        read_checkpoint(other, codec, ValueError, MazePopulation)
 
 
 def test_the_old_module_name_warns_and_gives_the_new_modules_names() -> None:

@@ -24,6 +24,7 @@ from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from rl_baselines import RLConfigError
 from rl_baselines.jax.coevolution import JaxCoevolutionRun
 from rl_baselines.train import TrainConfig
+from tests.run_folders import retagged_checkpoint
 
 #: Old module -> new module.
 MOVED = {
@@ -99,24 +100,14 @@ def test_a_checkpoint_naming_the_old_module_is_read(tmp_path: Path) -> None:
     run, state = _state(tmp_path)
     codec, state_class = run.state_codec(), run.state_class
     path = write_checkpoint(tmp_path / "state.npz", state, codec)
-    with np.load(path) as archive:
-        entries = {name: archive[name] for name in archive.files}
-    text = entries["state"].tobytes().decode("utf-8")
-    assert "rl_baselines.jax.coevolution:_JaxState" in text
-    old = text.replace("rl_baselines.jax.coevolution:", "rl_baselines.jax_coevolution:")
-    assert "rl_baselines.jax.coevolution" not in old
-    entries["state"] = np.frombuffer(old.encode("utf-8"), dtype=np.uint8)
-    np.savez_compressed(tmp_path / "old.npz", **entries)
-    copy = read_checkpoint(tmp_path / "old.npz", codec, RLConfigError, state_class)
+    new = "rl_baselines.jax.coevolution"
+    old = retagged_checkpoint(path, new, "rl_baselines.jax_coevolution", tmp_path / "old.npz")
+    copy = read_checkpoint(old, codec, RLConfigError, state_class)
     assert type(copy) is state_class
     assert (copy.round, copy.steps, copy.trainer_folder) == (6, 480, "trainer-6")
     assert [r.to_row() for r in copy.mazes.records] == [r.to_row() for r in state.mazes.records]
     assert [b.maze for b in copy.mazes.propose()] == [b.maze for b in state.mazes.propose()]
     # an old tag of another module is still refused
-    entries["state"] = np.frombuffer(
-        old.replace("rl_baselines.jax_coevolution:", "rl_baselines.jax_elsewhere:").encode(),
-        dtype=np.uint8,
-    )
-    np.savez_compressed(tmp_path / "other.npz", **entries)
+    other = retagged_checkpoint(path, new, "rl_baselines.jax_elsewhere", tmp_path / "other.npz")
     with pytest.raises(RLConfigError, match="jax_elsewhere:_JaxState"):
-        read_checkpoint(tmp_path / "other.npz", codec, RLConfigError, state_class)
+        read_checkpoint(other, codec, RLConfigError, state_class)

@@ -133,8 +133,8 @@ class TrainConfig(RegimeConfig):
         None,
         "interpolation: the end maze of an evaluation series, interpolated as the target is;"
         " each stage is evaluated on the same stage of it (4 rotations), stops once every"
-        " episode there is optimal, and keeps its best agent (the paper's scripts); default:"
-        " none, stages stop on their own mazes",
+        " episode there is optimal, and keeps its best agent (the paper's scripts; eval_every"
+        " then plays no part); default: none, stages stop on their own mazes",
         metavar="MAZE",
         regimes=("interpolation",),
     )

@@ -14,7 +14,11 @@ the start of a rollout, when ``eval_every`` steps have passed since the last
 evaluation (and at the session's start), the model is evaluated on the
 session's mazes (the shared :class:`~amaze.evaluation.protocol.Evaluator`,
 deterministic actions) and the session's ``checkpoint()`` is called; once
-every episode is optimal (R̄ = 1) the session stops: it has converged.
+every episode is optimal (R̄ = 1) the session stops: it has converged. A
+watched session (:class:`~amaze.curriculum.learner.SessionWatch`) is
+evaluated on the watch's mazes instead, every ``watch.every`` steps (never at
+its start), keeps its best agent through ``watch.keep_best()`` and converges
+there; ``eval_every`` then plays no part.
 
 Files (:meth:`SB3Learner.save`, each written atomically): ``model.zip``, SB3's
 zip (weights and optimiser state), and ``learner.json``: the learner's own
@@ -31,6 +35,7 @@ import io
 import os
 import tempfile
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -135,7 +140,7 @@ class _SessionCallback(BaseCallback):
         return not self.learner.session["converged"] and not self.learner._out_of_time()
 
 
-class Sessions:
+class Sessions(ABC):
     """What the two RL learners (SB3's and JAX's) share: a session's record, clock and budgets.
 
     A session is one call of ``train`` on a list of mazes: its ``session``
@@ -190,13 +195,13 @@ class Sessions:
         self._clock = (time.monotonic(), float(session["seconds"]))
         return session
 
+    @abstractmethod
     def robot_name(self) -> str:
         """The robot the learner trains (what its evaluations play)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def agent(self) -> Any:
         """The agent now, acting deterministically."""
-        raise NotImplementedError
 
     def _watch_point(self, steps: int) -> bool:
         """Evaluate on the watch's mazes if one is due at ``steps``; True if it evaluated.

@@ -21,9 +21,11 @@ steps on the 4 rotations of each of ``eval_mazes`` (default:
 the budget is spent (``budget_steps`` env steps and/or ``budget_seconds``
 seconds, whichever comes first) or when every evaluation episode is optimal
 (paper reward R̄ = 1): the paper's protocol. The agent handed over is chosen
-by ``agent_rule``: ``final`` (default: the model when training stopped) or
+by ``agent_rule``: ``final`` (default: the model when training stopped),
 ``best-eval`` (the best evaluated model, by success rate then R̄ on the
-evaluation mazes, the earliest on ties); ``summary.json`` says which, and at
+evaluation mazes, the earliest on ties) or ``best-eval-reward`` (by R̄ alone,
+never the untrained model: SB3's ``EvalCallback`` best model, what
+``--protocol paper-code`` uses); ``summary.json`` says which, and at
 how many steps it was found.
 
 A steps budget is spent in whole rollouts (``n_steps x n_envs``), never past

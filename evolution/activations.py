@@ -12,10 +12,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from amaze.agents.network_inputs import ACTIVATIONS
+
 __all__ = ["ACTIVATIONS", "ACTIVATION_CODES", "activate", "activate_block", "tanh32"]
 
-#: Hidden-layer activations.
-ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
 #: Their codes in the compiled kernels.
 ACTIVATION_CODES = {name: code for code, name in enumerate(ACTIVATIONS)}
 _TANH, _RELU, _SIGMOID, _IDENTITY = range(4)

@@ -60,6 +60,7 @@ import numba
 import numpy as np
 
 from amaze.agents.engine import threads_pay_off
+from amaze.agents.network_inputs import DEFAULT_POOL, SYMMETRIES, pool_edges, rotation_index
 from amaze.agents.robot import Robot, RobotStringError, as_robot
 from amaze.validation import (
     MAX_HIDDEN_LAYERS,
@@ -91,10 +92,6 @@ __all__ = [
     "rotation_index",
 ]
 
-#: Weight sharing across directions (see the module docstring, "Symmetry").
-SYMMETRIES: tuple[str, ...] = ("none", "rotations")
-#: Default side of the pooled grid of image robots.
-DEFAULT_POOL = 5
 #: Inputs of discrete-input robots, actions of discrete-output robots, accelerations.
 N_DISCRETE_INPUTS = 8
 N_DISCRETE_ACTIONS = 4
@@ -362,7 +359,7 @@ class NetworkSpec:
             return observations.reshape(n, -1).astype(np.float32)
         v = int(self.robot_info.vision)
         images = observations.reshape(n, v, v).astype(np.float64)
-        edges = _pool_edges(v, self.pool)
+        edges = pool_edges(v, self.pool)
         out = np.empty((n, self.pool, self.pool), dtype=np.float64)
         for r in range(self.pool):
             for c in range(self.pool):
@@ -404,26 +401,6 @@ def check_symmetry(symmetry: object, robot: Robot | None = None, name: str = "sy
             " (give symmetry 'none', or a DD or H robot)"
         )
     return str(symmetry)
-
-
-def rotation_index(side: int | None) -> np.ndarray:
-    """int64 ``(4, n)``: row ``d`` gathers the inputs of the cell turned ``d`` times clockwise.
-
-    ``side`` None: the 8 inputs of DD robots (4 walls, then 4 signs, E, N, W,
-    S), each group shifted cyclically; else a ``side x side`` image (row 0
-    north), turned by ``np.rot90(grid, -d)``. After the gather, side ``d`` of
-    the cell lies east.
-    """
-    if side is None:
-        sides = np.array([[(d + j) % 4 for j in range(4)] for d in range(4)], dtype=np.int64)
-        return np.concatenate([sides, sides + 4], axis=1)
-    grid = np.arange(side * side, dtype=np.int64).reshape(side, side)
-    return np.stack([np.rot90(grid, -d).ravel() for d in range(4)])
-
-
-def _pool_edges(vision: int, pool: int) -> np.ndarray:
-    """Block edges of the pooled grid along one image axis (``pool + 1`` integers)."""
-    return np.floor(np.linspace(0.0, vision, pool + 1) + 0.5).astype(np.int64)
 
 
 # -----------------------------------------------------------------------------
@@ -778,7 +755,7 @@ class NetworkPopulation:
         self._mode = _MODE_DISCRETE if self.robot.discrete_outputs else _MODE_CONTINUOUS
         self._vision = None if spec.grid is None else int(self.robot.vision)
         if spec.pool is not None:
-            edges = _pool_edges(self._vision, spec.pool)
+            edges = pool_edges(self._vision, spec.pool)
             self._edges = edges
             counts = np.outer(np.diff(edges), np.diff(edges)).ravel()
             self._scale = (1.0 / (255.0 * counts)).astype(np.float32)

@@ -267,14 +267,18 @@ class RLCoevolutionRun(CoevolutionRun):
     def check_champion(self) -> None:
         """A damaged champion of a resumed run is refused here, by name."""
         if self.champion_file.exists() or self.champion_file.is_symlink():
-            SB3Agent.load(self.champion_file)
+            self.load_agent(self.champion_file)
+
+    def load_agent(self, path: Path) -> Any:
+        """The agent saved at ``path`` (the champion), checked: an SB3 agent here."""
+        return SB3Agent.load(path)
 
     # -- the lifecycle's hooks ------------------------------------------------
 
-    def final_agent(self) -> SB3Agent:
+    def final_agent(self) -> Any:
         if not self.champion_file.exists():
             raise RLConfigError("the run played no round: it has no champion")
-        return SB3Agent.load(self.champion_file)
+        return self.load_agent(self.champion_file)
 
     def save_agent(self, agent: SB3Agent, path: Path) -> None:
         agent.save(path)

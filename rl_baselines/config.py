@@ -120,6 +120,12 @@ class TrainConfig(RegimeConfig):
         help="SB3 hyperparameters overriding SB3's defaults",
         command_line=False,
     )
+    network: dict[str, Any] | None = option(
+        None,
+        "framework jax: evolution's network spec (hidden, activation, pool, symmetry) instead"
+        " of SB3's policy; the agent is saved as an evolved agent's file (agent.npz)",
+        command_line=False,
+    )
     agent_rule: str | None = option(
         None,
         "which agent the run hands over: final (the agent when training stops), best-eval"
@@ -272,6 +278,11 @@ class TrainConfig(RegimeConfig):
                 f"framework {self.framework!r} is unknown (choose from {', '.join(FRAMEWORKS)})"
             )
         if self.framework != "jax":
+            if self.network is not None:
+                raise RLConfigError(
+                    f"network {self.network!r} has no effect with framework {self.framework}:"
+                    " SB3 trains its own policies (give framework jax)"
+                )
             return
         robot = as_robot(self.robot)
         if not robot.discrete_outputs:
@@ -295,6 +306,15 @@ class TrainConfig(RegimeConfig):
             )
         except RLConfigError as problem:
             raise RLConfigError(f"framework jax: {problem}") from None
+        if self.network is not None:
+            from rl_baselines.jax.spec import network_spec
+
+            if self.hyperparameters.get("policy_kwargs"):
+                raise RLConfigError(
+                    "hyperparameter 'policy_kwargs' with a network: the network gives the"
+                    " policy's layers (give one of them)"
+                )
+            network_spec(self.robot, self.network)
 
     def _check_envs(self) -> None:
         """``eval_every`` and ``n_envs`` are integers >= 1, ``n_envs`` a multiple of 4."""

@@ -37,6 +37,7 @@ from amaze.runs.curriculum import CurriculumRun
 from amaze.runs.folder import settled_folder, write_folder
 from rl_baselines.agent import SB3Agent
 from rl_baselines.config import TrainConfig, fitted_hyperparameters
+from rl_baselines.jax.agent import NetworkRunFiles
 from rl_baselines.learner import (
     LEARNER_FILE,
     SB3Learner,
@@ -254,7 +255,7 @@ class SB3CurriculumRun(CurriculumRun):
         super().start()
 
 
-class JaxCurriculumRun(SB3CurriculumRun):
+class JaxCurriculumRun(NetworkRunFiles, SB3CurriculumRun):
     """The curriculum loop with ``--framework jax``: a JAX learner in every branch.
 
     The same loop, folder and fitted rollouts as :class:`SB3CurriculumRun`,
@@ -265,7 +266,7 @@ class JaxCurriculumRun(SB3CurriculumRun):
     TensorBoard logs.
     """
 
-    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", *CurriculumRun.outputs)
+    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", "agent.npz", *CurriculumRun.outputs)
 
     def _tensorboard_dir(self) -> str | None:
         return None
@@ -276,7 +277,13 @@ class JaxCurriculumRun(SB3CurriculumRun):
 
         c = self.config
         trainer = JaxTrainer(
-            c.algo, c.robot, [c.target], self.hyperparameters, seed=seed, n_envs=c.n_envs
+            c.algo,
+            c.robot,
+            [c.target],
+            self.hyperparameters,
+            seed=seed,
+            n_envs=c.n_envs,
+            network=c.network,
         )
         return JaxLearner(trainer, seed=seed, eval_every=c.eval_every)
 
@@ -287,7 +294,7 @@ class JaxCurriculumRun(SB3CurriculumRun):
         return load_jax_learner(folder, algo=c.algo, robot=c.robot, n_envs=c.n_envs)
 
     def learner_figures(self) -> dict[str, Any]:
-        return {**super().learner_figures(), "framework": "jax"}
+        return {**super().learner_figures(), "framework": "jax", **self.network_figures()}
 
     def start(self) -> None:
         """The curator (:meth:`CurriculumRun.start`); bad hyperparameters fail first."""

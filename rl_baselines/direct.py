@@ -200,7 +200,7 @@ class DirectRun(Run):
         self.check_config_digest(data.get("config_sha256"), f"checkpoint file {str(state_file)!r}")
         champion = [self.champion_file, self.champion_file.with_suffix(".json")]
         if any(f.exists() or f.is_symlink() for f in champion):
-            SB3Agent.load(champion[0])  # a damaged champion is refused here, by name
+            self.load_agent(champion[0])  # a damaged champion is refused here, by name
         self.seconds_before = state["seconds"]
         self.best = tuple(state["best"]) if state["best"] is not None else None
         self.best_steps = state["best_steps"]
@@ -222,8 +222,12 @@ class DirectRun(Run):
         (``agent_figures`` says so).
         """
         if self.config.agent_rule in EVALUATION_RULES and self.best is not None:
-            return SB3Agent.load(self.champion_file)
+            return self.load_agent(self.champion_file)
         return self.current_model_agent()
+
+    def load_agent(self, path: Path) -> Any:
+        """The agent saved at ``path`` (the champion), checked: an SB3 agent here."""
+        return SB3Agent.load(path)
 
     def save_agent(self, agent: Any, path: Path) -> None:
         agent.save(path)

@@ -11,6 +11,8 @@ Above the maze core, below environments and evaluation:
 * :mod:`~amaze.agents.tables`, :mod:`~amaze.agents.engine`: compiled per-cell tables
   and the batch engine (many agents x many mazes), cross-checked with the simulation;
 * :mod:`~amaze.agents.trajectories`: pictures and animations of episodes.
+* :mod:`~amaze.agents.agent_file`: the ``.npz`` + JSON format of saved agents (no pickle),
+  shared by the trainers.
 
 The batch engine imports numba; import it from :mod:`amaze.agents.engine`.
 """

@@ -76,7 +76,13 @@ def version_line() -> str:
 def run_command(body: Callable[[], int | None]) -> int:
     """Run a command's ``body`` under the error contract; return the exit status."""
     try:
-        return body() or 0
+        try:
+            return body() or 0
+        except Exception as error:
+            interrupt = interrupt_behind(error)
+            if interrupt is None:
+                raise
+            raise interrupt from None
     except BrokenPipeError:
         # The reader went away (e.g. `amaze inspect ... | head`): stop quietly.
         sys.stdout = open(os.devnull, "w")
@@ -92,6 +98,24 @@ def run_command(body: Callable[[], int | None]) -> int:
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised where the program runs, so that it ends as an interrupt does."""
+
+
+def interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
+    """The interrupt (Ctrl-C or :class:`Terminated`) that ``error`` was raised while handling.
+
+    A signal can land inside a library's write (numpy's ``savez`` in a
+    checkpoint's serialisation, say), whose clean-up then raises an error of
+    its own with the interrupt as its context. The run stopped because of the
+    interrupt, so it ends as one (exit status, message), not with a traceback.
+    """
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
 
 
 @contextlib.contextmanager
@@ -241,9 +265,12 @@ class TrainingCommand:
         with context, terminated_as_interrupt():
             try:
                 result = self._one_run(args, progress)
-            except KeyboardInterrupt as interrupt:
+            except (KeyboardInterrupt, Exception) as error:
+                interrupt = interrupt_behind(error)
+                if interrupt is None:
+                    raise
                 self._say_interrupted(args, interrupt)
-                raise
+                raise interrupt from None
         if result.finished_before:
             print(f"{result.out} holds a finished run (its summary.json): nothing was changed")
         print(result.headline)

@@ -42,7 +42,7 @@ from amaze.runs.checkpoint import StateCodec, curriculum_classes
 from amaze.runs.coevolution import CoevolutionRun, CoevolutionState
 from rl_baselines.coevolution import EndedEpisodes, RLCoevolutionRun, named_checkpoint
 from rl_baselines.config import TrainConfig
-from rl_baselines.jax.agent import JaxAgent
+from rl_baselines.jax.agent import JaxAgent, NetworkRunFiles
 from rl_baselines.jax.storage import save_trainer
 from rl_baselines.jax.trainer import JaxTrainer, load_trainer
 
@@ -60,12 +60,12 @@ class _JaxState(CoevolutionState):
     trainer_folder: str = ""
 
 
-class JaxCoevolutionRun(RLCoevolutionRun):
+class JaxCoevolutionRun(NetworkRunFiles, RLCoevolutionRun):
     """The co-evolution rounds of a JAX trainer (see the module docstring)."""
 
     state: _JaxState
     state_class = _JaxState
-    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", *CoevolutionRun.outputs)
+    outputs: ClassVar[tuple[str, ...]] = ("agent.zip", "agent.npz", *CoevolutionRun.outputs)
 
     def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
         super().__init__(out, config)
@@ -99,6 +99,7 @@ class JaxCoevolutionRun(RLCoevolutionRun):
             seed=c.seed,
             n_envs=c.n_envs,
             max_cells=self.max_cells(),
+            network=c.network,
         )
         return _JaxState(mazes)
 
@@ -111,7 +112,7 @@ class JaxCoevolutionRun(RLCoevolutionRun):
         assert isinstance(state, _JaxState)
         trainer = load_trainer(named_checkpoint(self, state.trainer_folder))
         c = self.config
-        expected = {"algo": c.algo, "robot": c.robot, "n_envs": c.n_envs}
+        expected = {"algo": c.algo, "robot": c.robot, "n_envs": c.n_envs, "network": c.network}
         trainer.check_settings(expected, f"checkpoint {str(self.checkpoint)!r}")
         self.trainer = trainer
         self.check_champion()
@@ -149,4 +150,4 @@ class JaxCoevolutionRun(RLCoevolutionRun):
                 shutil.rmtree(old)  # older trainers, and what a killed save left aside
 
     def own_figures(self) -> dict[str, Any]:
-        return {**super().own_figures(), "max_cells": self.max_cells()}
+        return {**super().own_figures(), "max_cells": self.max_cells(), **self.network_figures()}

@@ -162,11 +162,16 @@ class Hyperparameters:
         """Env steps (samples) of one rollout: ``n_steps * n_envs``."""
         return self.n_steps * self.n_envs
 
-    def sb3_kwargs(self) -> dict[str, Any]:
-        """The keyword arguments that build the same SB3 model (for :func:`new_sb3_model`)."""
+    def sb3_kwargs(self, *, policy: bool = True) -> dict[str, Any]:
+        """The keyword arguments that build the same SB3 model (for :func:`new_sb3_model`).
+
+        ``policy`` False: without ``policy_kwargs`` (a network spec gives the policy).
+        """
         kwargs: dict[str, Any] = {
             name: getattr(self, name) for name in SB3_DEFAULTS[self.algo] if hasattr(self, name)
         }
+        if not policy:
+            return kwargs
         net_arch = {"pi": list(self.net_pi), "vf": list(self.net_vf)}
         policy_kwargs: dict[str, Any] = {"net_arch": net_arch}
         if self.features_dim != 64:

@@ -45,6 +45,12 @@ key (SB3 ``state_dict`` prefix)    weight, bias shapes (DD / H15)
 ``pi_features_extractor.*`` and ``vf_features_extractor.*``, the same tensors).
 MLP layers are numbered ``0, 2, 4...`` as in SB3's ``nn.Sequential`` (Linear,
 Tanh, Linear, ...).
+
+A ``network`` kind's policy (:mod:`rl_baselines.jax.spec`) has the same
+modules without the CNN: the MLPs read the 8 floats or the pooled retina,
+with the spec's activation; with rotations, ``action_net`` and ``value_net``
+have one output, scored on each of the four turned views (the logits of the
+four directions; the value their mean).
 """
 
 from __future__ import annotations
@@ -148,8 +154,28 @@ def conv_xla(weight: jax.Array, x: jax.Array) -> jax.Array:
     )
 
 
+#: The hidden activations of a ``network`` kind's MLPs, by name.
+_ACTIVATIONS = {
+    "tanh": jnp.tanh,
+    "relu": jax.nn.relu,
+    "sigmoid": jax.nn.sigmoid,
+    "identity": lambda x: x,
+}
+
+
 def _features(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
-    """SB3's ``extract_features``: the floats as they are, or SmallCNN on images / 255."""
+    """SB3's ``extract_features``: the floats as they are, or SmallCNN on images / 255.
+
+    A ``network`` kind: the 8 floats or the pooled retina, and with rotations
+    the four turned views, ``(n, 4, n_inputs)``.
+    """
+    if spec.kind == "network":
+        x = obs.astype(jnp.float32).reshape(obs.shape[0], -1)
+        if spec.pool is not None:
+            x = x @ jnp.asarray(spec.pooling())
+        if spec.copies == 4:
+            x = x[:, jnp.asarray(spec.turns())]
+        return x
     if not spec.images:
         return obs.astype(jnp.float32)
     x = obs.astype(jnp.float32) / 255.0
@@ -160,28 +186,33 @@ def _features(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
     return jax.nn.relu(_linear(params[LINEAR], x))
 
 
-def _mlp(params: Params, net: str, layers: int, x: jax.Array) -> jax.Array:
-    """One of ``MlpExtractor``'s nets: Linear and Tanh, ``layers`` times."""
+def _mlp(spec: PolicySpec, params: Params, net: str, x: jax.Array) -> jax.Array:
+    """One of ``MlpExtractor``'s nets: Linear and the activation (Tanh), once per layer."""
+    activation = _ACTIVATIONS[spec.activation]
+    layers = len(spec.net_pi if net == "policy_net" else spec.net_vf)
     for i in range(layers):
-        x = jnp.tanh(_linear(params[f"mlp_extractor.{net}.{2 * i}"], x))
+        x = activation(_linear(params[f"mlp_extractor.{net}.{2 * i}"], x))
     return x
+
+
+def _values(spec: PolicySpec, params: Params, features: jax.Array) -> jax.Array:
+    """``(n,)`` values of the features (with rotations, the mean over the four turns)."""
+    values = _linear(params["value_net"], _mlp(spec, params, "value_net", features))[..., 0]
+    return values.mean(axis=1) if spec.copies == 4 else values
 
 
 def apply(spec: PolicySpec, params: Params, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
     """``(logits (n, 4), values (n,))`` of a batch of observations (SB3's ``forward``)."""
     features = _features(spec, params, obs)
-    latent_pi = _mlp(params, "policy_net", len(spec.net_pi), features)
-    latent_vf = _mlp(params, "value_net", len(spec.net_vf), features)
-    logits = _linear(params["action_net"], latent_pi)
-    values = _linear(params["value_net"], latent_vf)[:, 0]
-    return logits, values
+    logits = _linear(params["action_net"], _mlp(spec, params, "policy_net", features))
+    if spec.copies == 4:
+        logits = logits[..., 0]
+    return logits, _values(spec, params, features)
 
 
 def predict_values(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
     """``(n,)`` values alone (SB3's ``predict_values``), without the policy's MLP."""
-    features = _features(spec, params, obs)
-    latent_vf = _mlp(params, "value_net", len(spec.net_vf), features)
-    return _linear(params["value_net"], latent_vf)[:, 0]
+    return _values(spec, params, _features(spec, params, obs))
 
 
 def log_probabilities(logits: jax.Array) -> jax.Array:

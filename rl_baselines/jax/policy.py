@@ -32,6 +32,15 @@ def _linear(layer: Mapping[str, np.ndarray], x: np.ndarray) -> np.ndarray:
     return x @ layer["weight"].T + layer["bias"]
 
 
+#: The hidden activations of a ``network`` kind's MLPs, by name.
+_ACTIVATIONS = {
+    "tanh": np.tanh,
+    "relu": lambda x: np.maximum(x, 0),
+    "sigmoid": lambda x: 1 / (1 + np.exp(-x)),
+    "identity": lambda x: x,
+}
+
+
 def _conv3x3(layer: Mapping[str, np.ndarray], x: np.ndarray) -> np.ndarray:
     """``nn.Conv2d(kernel_size=3, padding=1)`` on NCHW images, as one matrix product."""
     n, c, h, w = x.shape
@@ -49,14 +58,27 @@ class NumpyPolicy:
 
     ``params``: ``{module: {"weight", "bias"}}`` with SB3's names and torch's
     layout (:mod:`rl_baselines.jax.networks`), checked against ``spec``.
+    ``actor_only``: the value modules may be missing (a ``network`` kind's
+    agent file holds the actor alone); :meth:`logits_and_values` then fails.
     """
 
-    def __init__(self, spec: PolicySpec, params: Mapping[str, Mapping[str, np.ndarray]]) -> None:
+    def __init__(
+        self,
+        spec: PolicySpec,
+        params: Mapping[str, Mapping[str, np.ndarray]],
+        *,
+        actor_only: bool = False,
+    ) -> None:
         self.spec = spec
         self.robot: Robot = spec.parsed_robot
         self.params: dict[str, dict[str, np.ndarray]] = {}
+        if spec.kind == "network":
+            self._turns = spec.turns()
+            self._pooling = spec.pooling() if spec.pool is not None else None
         for module, shape in spec.layer_shapes().items():
             layer = params.get(module)
+            if layer is None and actor_only and "value_net" in module:
+                continue
             if layer is None:
                 raise RLConfigError(f"policy parameters: module {module!r} is missing")
             weight = np.asarray(layer["weight"], np.float32)
@@ -70,6 +92,11 @@ class NumpyPolicy:
 
     def _features(self, observations: np.ndarray) -> np.ndarray:
         x = np.asarray(observations)
+        if self.spec.kind == "network":
+            x = x.reshape(x.shape[0], -1).astype(np.float32)
+            if self.spec.pool is not None:
+                x = x @ self._pooling
+            return x[:, self._turns] if self.spec.copies == 4 else x
         if not self.spec.images:
             return x.astype(np.float32, copy=False).reshape(-1, 8)
         v = self.spec.observation_shape[-1]
@@ -81,22 +108,30 @@ class NumpyPolicy:
         return np.maximum(_linear(self.params[LINEAR], x.reshape(x.shape[0], -1)), 0)
 
     def _mlp(self, net: str, layers: int, x: np.ndarray) -> np.ndarray:
+        activation = _ACTIVATIONS[self.spec.activation]
         for i in range(layers):
-            x = np.tanh(_linear(self.params[f"mlp_extractor.{net}.{2 * i}"], x))
+            x = activation(_linear(self.params[f"mlp_extractor.{net}.{2 * i}"], x))
         return x
+
+    def logits(self, observations: np.ndarray) -> np.ndarray:
+        """``(n, 4)`` float32 logits of a batch of observations (the actor alone)."""
+        features = self._features(observations)
+        latent_pi = self._mlp("policy_net", len(self.spec.net_pi), features)
+        logits = _linear(self.params["action_net"], latent_pi)
+        return logits[..., 0] if self.spec.copies == 4 else logits
 
     def logits_and_values(self, observations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(logits (n, 4), values (n,))`` of a batch of observations, float32."""
         features = self._features(observations)
-        latent_pi = self._mlp("policy_net", len(self.spec.net_pi), features)
         latent_vf = self._mlp("value_net", len(self.spec.net_vf), features)
-        logits = _linear(self.params["action_net"], latent_pi)
-        values = _linear(self.params["value_net"], latent_vf)[:, 0]
-        return logits, values
+        values = _linear(self.params["value_net"], latent_vf)[..., 0]
+        if self.spec.copies == 4:
+            values = values.mean(axis=1)
+        return self.logits(observations), values
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
         """Deterministic actions (int64 ``(n,)``): the most probable one (first on ties)."""
-        logits, _ = self.logits_and_values(observations)
+        logits = self.logits(observations)
         shifted = np.exp(logits - logits.max(axis=1, keepdims=True))
         probabilities = shifted / shifted.sum(axis=1, keepdims=True)
         return probabilities.argmax(axis=1).astype(np.int64)

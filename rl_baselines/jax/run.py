@@ -9,6 +9,10 @@ folder (:mod:`rl_baselines.train`): ``progress.csv`` (the evaluations every
 ``checkpoints/champion.zip``, ``agent.zip`` + ``agent.json`` (SB3's format:
 :class:`~rl_baselines.jax.agent.JaxAgent`, chosen by the same ``agent_rule``)
 and ``summary.json``. No ``tensorboard/`` (the config refuses ``--tensorboard``).
+With a ``network`` spec the champion and the agent are evolved agents' files
+(``checkpoints/champion.npz``, ``agent.npz``:
+:class:`~rl_baselines.jax.agent.NetworkAgent`), and ``summary.json`` records
+the network's architecture.
 
 **The loop.** The trainer runs whole rollouts in compiled blocks; a block
 ends at every rollout boundary where the SB3 run acts: an evaluation due
@@ -32,6 +36,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 from amaze.agents.robot import as_robot
 from amaze.evaluation.protocol import Evaluator
@@ -43,7 +48,7 @@ from amaze.runs.progress import Progress
 from rl_baselines import RLConfigError
 from rl_baselines.config import TrainConfig, check_rollout_fits
 from rl_baselines.direct import LATEST_FOLDER, DirectRun
-from rl_baselines.jax.agent import JaxAgent
+from rl_baselines.jax.agent import JaxAgent, NetworkRunFiles
 from rl_baselines.jax.hyperparameters import checked_hyperparameters
 from rl_baselines.jax.storage import save_trainer
 from rl_baselines.jax.trainer import JaxTrainer
@@ -54,15 +59,20 @@ __all__ = ["TRAINER_FOLDER", "JaxRun"]
 TRAINER_FOLDER = "trainer"
 
 
-class JaxRun(DirectRun):
+class JaxRun(NetworkRunFiles, DirectRun):
     """The direct regime trained by the JAX learners (see the module docstring)."""
 
     checkpoint_files = ("latest/trainer/", "latest/state.json")
-    outputs = ("agent.zip", "summary.json", "progress.csv")
+    #: The files a run may write (those it wrote are listed): an SB3 agent or a network's.
+    outputs = ("agent.zip", "agent.npz", "summary.json", "progress.csv")
 
     def __init__(self, out: str | os.PathLike, config: TrainConfig) -> None:
         super().__init__(out, config)
         self.trainer: JaxTrainer | None = None
+
+    def agent_figures(self) -> dict[str, Any]:
+        """The base figures, and the network's architecture when a spec gave it."""
+        return {**super().agent_figures(), **self.network_figures()}
 
     # -- what the framework says ------------------------------------------------------
 
@@ -90,7 +100,13 @@ class JaxRun(DirectRun):
         """A fresh trainer of the config's algorithm, hyperparameters and seed."""
         c = self.config
         self.trainer = JaxTrainer(
-            c.algo, c.robot, self._mazes(), c.hyperparameters, seed=c.seed, n_envs=c.n_envs
+            c.algo,
+            c.robot,
+            self._mazes(),
+            c.hyperparameters,
+            seed=c.seed,
+            n_envs=c.n_envs,
+            network=c.network,
         )
         check_rollout_fits(c, self.rollout, "learns in whole rollouts")
 
@@ -117,7 +133,8 @@ class JaxRun(DirectRun):
             "seed": c.seed,
             "n_envs": c.n_envs,
             "mazes": [maze.to_string() for maze in as_mazes(self._mazes())],
-            "hyperparameters": hp.sb3_kwargs(),
+            "hyperparameters": hp.sb3_kwargs(policy=c.network is None),
+            "network": c.network,
         }
         trainer.check_settings(expected, f"checkpoint {str(trainer_folder)!r}")
         if trainer.num_timesteps != steps:

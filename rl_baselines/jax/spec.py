@@ -1,20 +1,45 @@
-"""The architecture of an SB3 actor-critic policy for an AMaze robot, without JAX.
+"""The architecture of an actor-critic policy for an AMaze robot, without JAX.
 
 :class:`PolicySpec` says which modules a policy has and their shapes (torch's
 layout, SB3's names); :mod:`rl_baselines.jax.networks` builds and runs them in
 JAX, :mod:`rl_baselines.jax.policy` in numpy. It imports no JAX, so that a
 trained policy can be evaluated without loading JAX.
+
+Two kinds of policy:
+
+* ``sb3`` (the default): SB3's ``MlpPolicy`` (DD) or ``CnnPolicy`` with
+  :class:`~rl_baselines.networks.SmallCNN` (hybrid robots), Tanh; an agent is
+  saved as an SB3 zip;
+* ``network``: the fixed-topology network of evolution's ``network`` spec
+  (:mod:`amaze.agents.network_inputs`): the 8 floats or the pooled retina,
+  hidden layers of ``activation``, and with ``symmetry = "rotations"`` one
+  network scored on each turned view (the actor's logit of direction ``d``
+  from the inputs turned ``d`` quarter-turns, the critic the mean of its
+  four turned values, so invariant under turns). The actor is exactly an
+  evolved network of the same spec: an agent is saved as an evolved agent's
+  file (:meth:`PolicySpec.architecture`, :meth:`PolicySpec.actor_vector`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from amaze.agents.network_inputs import (
+    ACTIVATIONS,
+    DEFAULT_POOL,
+    SYMMETRIES,
+    pool_matrix,
+    rotation_index,
+)
 from amaze.agents.robot import Robot, as_robot
+from amaze.validation import check_integer, check_layer_widths, closest
+from rl_baselines import RLConfigError
 
-__all__ = ["CONV1", "CONV2", "LINEAR", "N_ACTIONS", "PolicySpec"]
+__all__ = ["CONV1", "CONV2", "KINDS", "LINEAR", "N_ACTIONS", "PolicySpec", "network_spec"]
 
 #: Discrete actions of AMaze's robots: E, N, W, S.
 N_ACTIONS = 4
@@ -28,21 +53,43 @@ CONV1, CONV2, LINEAR = (
     "features_extractor.cnn.2",
     "features_extractor.linear.0",
 )
+#: The kinds of policy (see the module docstring).
+KINDS: tuple[str, ...] = ("sb3", "network")
+#: The keys of a ``network`` spec in a config (evolution's, less its robot, filters, stride).
+NETWORK_KEYS: tuple[str, ...] = ("hidden", "activation", "pool", "symmetry")
 
 
 @dataclass(frozen=True)
 class PolicySpec:
-    """The architecture of one policy: robot, MLP layers, CNN features (hashable, static).
+    """The architecture of one policy: robot, MLP layers, inputs (hashable, static).
 
     ``robot`` is a robot string with discrete actions (``DD`` or ``H<v>``);
     ``net_pi`` / ``net_vf`` the hidden widths of the policy and value MLPs;
-    ``features_dim`` the CNN's output width (hybrid robots).
+    ``features_dim`` the CNN's output width (``sb3`` kind, hybrid robots);
+    ``kind``, ``activation``, ``symmetry`` and ``pool`` as the module
+    docstring says (``sb3``: tanh, no symmetry, no pool).
     """
 
     robot: str = "DD"
     net_pi: tuple[int, ...] = (64, 64)
     net_vf: tuple[int, ...] = (64, 64)
     features_dim: int = 64
+    kind: str = "sb3"
+    activation: str = "tanh"
+    symmetry: str = "none"
+    pool: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise RLConfigError(f"policy kind {self.kind!r} is not one of {', '.join(KINDS)}")
+        if self.kind == "sb3" and (self.activation, self.symmetry, self.pool) != (
+            "tanh",
+            "none",
+            None,
+        ):
+            raise RLConfigError(
+                "an SB3 policy has tanh, no symmetry and no pool (a network spec gives them)"
+            )
 
     @property
     def parsed_robot(self) -> Robot:
@@ -50,8 +97,27 @@ class PolicySpec:
 
     @property
     def images(self) -> bool:
-        """Whether the robot sees images (a CNN features extractor)."""
-        return not self.parsed_robot.discrete_inputs
+        """Whether the policy reads images through a CNN (SB3's policy for a hybrid robot)."""
+        return self.kind == "sb3" and not self.parsed_robot.discrete_inputs
+
+    @property
+    def copies(self) -> int:
+        """Times the MLPs run per observation: 4 with rotations (one per direction), else 1."""
+        return 4 if self.symmetry == "rotations" else 1
+
+    @property
+    def n_inputs(self) -> int:
+        """Inputs of the MLPs (``network`` kind): the 8 floats or the pooled grid's cells."""
+        return 8 if self.pool is None else self.pool * self.pool
+
+    def turns(self) -> np.ndarray:
+        """int64 ``(4, n_inputs)``: the inputs' gather of each quarter-turn (rotations)."""
+        return rotation_index(self.pool)
+
+    def pooling(self) -> np.ndarray:
+        """float32 ``(v * v, pool * pool)``: the image's pixels to the pooled retina."""
+        assert self.pool is not None
+        return pool_matrix(int(self.parsed_robot.vision), self.pool).astype(np.float32)
 
     @property
     def observation_shape(self) -> tuple[int, ...]:
@@ -63,7 +129,7 @@ class PolicySpec:
     def layer_shapes(self) -> dict[str, tuple[int, ...]]:
         """The weight shape (torch layout) of every module, in SB3's parameter order."""
         shapes: dict[str, tuple[int, ...]] = {}
-        width = 8
+        width = self.n_inputs
         if self.images:
             v = self.observation_shape[-1]
             shapes[CONV1] = (16, 1, 3, 3)
@@ -75,7 +141,8 @@ class PolicySpec:
             for i, size in enumerate(layers):
                 shapes[f"mlp_extractor.{net}.{2 * i}"] = (size, previous)
                 previous = size
-        shapes["action_net"] = (N_ACTIONS, self.net_pi[-1] if self.net_pi else width)
+        actions = 1 if self.copies == 4 else N_ACTIONS
+        shapes["action_net"] = (actions, self.net_pi[-1] if self.net_pi else width)
         shapes["value_net"] = (1, self.net_vf[-1] if self.net_vf else width)
         return shapes
 
@@ -86,3 +153,120 @@ class PolicySpec:
         if module == "value_net":
             return GAIN_VALUE
         return GAIN_HIDDEN
+
+    # -- the network kind as an evolved agent --------------------------------------------
+
+    def actor_modules(self) -> list[str]:
+        """The actor's layers in order: the policy MLP's, then ``action_net``."""
+        hidden = [f"mlp_extractor.policy_net.{2 * i}" for i in range(len(self.net_pi))]
+        return [*hidden, "action_net"]
+
+    def architecture(self) -> dict[str, Any]:
+        """The actor as an evolved agent file's ``architecture`` (evolution's network spec)."""
+        if self.kind != "network":
+            raise RLConfigError("an SB3 policy is saved as an SB3 zip, not as a network")
+        return {
+            "type": "mlp",
+            "robot": self.robot,
+            "hidden": list(self.net_pi),
+            "activation": self.activation,
+            "pool": self.pool,
+            "symmetry": self.symmetry,
+            "filters": 0,
+            "stride": None,
+        }
+
+    def actor_vector(self, params: Mapping[str, Mapping[str, np.ndarray]]) -> np.ndarray:
+        """float64: the actor's parameters in an evolved network's layout.
+
+        For each layer, its weights as ``(d_in, d_out)`` row-major (torch's
+        ``(out, in)`` transposed), then its biases.
+        """
+        parts = []
+        for module in self.actor_modules():
+            layer = params[module]
+            parts.append(np.asarray(layer["weight"], np.float64).T.ravel())
+            parts.append(np.asarray(layer["bias"], np.float64).ravel())
+        return np.concatenate(parts)
+
+    def actor_vector_size(self) -> int:
+        """Parameters of the actor: the length of :meth:`actor_vector`."""
+        shapes = self.layer_shapes()
+        return sum(int(np.prod(shapes[m])) + shapes[m][0] for m in self.actor_modules())
+
+    def actor_from_vector(self, vector: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+        """The actor's layers (torch's layout, float32) of an evolved network's vector."""
+        shapes = self.layer_shapes()
+        expected = self.actor_vector_size()
+        vector = np.asarray(vector, np.float64)
+        if vector.shape != (expected,):
+            raise RLConfigError(
+                f"a network of {expected} parameters was expected, got shape {vector.shape}"
+            )
+        layers, offset = {}, 0
+        for module in self.actor_modules():
+            d_out, d_in = shapes[module]
+            weight = vector[offset : offset + d_in * d_out].reshape(d_in, d_out).T
+            offset += d_in * d_out
+            layers[module] = {
+                "weight": weight.astype(np.float32),
+                "bias": vector[offset : offset + d_out].astype(np.float32),
+            }
+            offset += d_out
+        return layers
+
+
+def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
+    """The ``network`` kind's spec of a config's ``network`` for ``robot``, every value checked.
+
+    ``network`` takes evolution's keys (:data:`NETWORK_KEYS`): ``hidden`` (the
+    actor's and the critic's hidden widths), ``activation``, ``pool`` (image
+    robots; default :data:`~amaze.agents.network_inputs.DEFAULT_POOL`) and
+    ``symmetry``. Unknown keys and bad values raise :class:`RLConfigError`.
+    """
+    if not isinstance(network, Mapping):
+        raise RLConfigError(f"network {network!r} is not a mapping of {', '.join(NETWORK_KEYS)}")
+    unknown = sorted(set(network) - set(NETWORK_KEYS))
+    if unknown:
+        named = ", ".join(f"{key!r}{closest(key, NETWORK_KEYS)}" for key in unknown)
+        raise RLConfigError(
+            f"network key(s) {named}: the RL learners' networks take {', '.join(NETWORK_KEYS)}"
+            " (no convolution: 'filters' and 'stride' are evolution's alone)"
+        )
+    parsed = as_robot(robot)
+    if not parsed.discrete_outputs:
+        raise RLConfigError(f"robot {parsed}: the RL learners act with discrete actions only")
+    hidden = network.get("hidden", [])
+    if isinstance(hidden, int) and not isinstance(hidden, bool):
+        hidden = [hidden]
+    widths = check_layer_widths("network hidden", hidden, error=RLConfigError)
+    activation = network.get("activation", "tanh")
+    if activation not in ACTIVATIONS:
+        raise RLConfigError(
+            f"network activation {activation!r} is not one of {', '.join(ACTIVATIONS)}"
+        )
+    symmetry = network.get("symmetry", "none")
+    if symmetry not in SYMMETRIES:
+        raise RLConfigError(f"network symmetry {symmetry!r} is not one of {', '.join(SYMMETRIES)}")
+    pool = network.get("pool")
+    if parsed.discrete_inputs:
+        if pool is not None:
+            raise RLConfigError(f"network pool {pool!r}: robot {parsed} has no image to pool")
+    else:
+        vision = int(parsed.vision)
+        pool = check_integer(
+            "network pool",
+            DEFAULT_POOL if pool is None else pool,
+            minimum=1,
+            maximum=vision,
+            error=RLConfigError,
+        )
+    return PolicySpec(
+        parsed.to_string(),
+        widths,
+        widths,
+        kind="network",
+        activation=activation,
+        symmetry=symmetry,
+        pool=pool,
+    )

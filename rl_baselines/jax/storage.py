@@ -6,7 +6,7 @@ new one, never a mix):
 
 * ``trainer.json``: what rebuilds the trainer (:meth:`JaxTrainer.settings`:
   algorithm, robot, mazes as strings, SB3's hyperparameters, seed, ``n_envs``,
-  padding, chunk size) and a format tag;
+  padding, chunk size, the network spec if any) and a format tag;
 * ``state.npz``: the whole training state (:func:`~rl_baselines.jax.trainer.state_arrays`:
   parameters, optimizer moments and step, the random key, the environments'
   states and observations, counters), uncompressed numpy arrays, read
@@ -40,6 +40,7 @@ from rl_baselines.jax.hyperparameters import (
     checked_hyperparameters,
     observation_size,
 )
+from rl_baselines.jax.spec import network_spec
 
 __all__ = [
     "SETTINGS_FILE",
@@ -142,6 +143,8 @@ def check_saved(folder: str | os.PathLike) -> None:
             maximum=MAX_CHUNK_STEPS,
             error=RLConfigError,
         )
+        if settings.get("network") is not None:
+            network_spec(robot.to_string(), settings["network"])
     except RLConfigError as error:
         raise RLConfigError(f"{where}: {error}") from None
     state = path / STATE_FILE

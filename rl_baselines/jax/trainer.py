@@ -57,6 +57,7 @@ from rl_baselines.jax.networks import (
 from rl_baselines.jax.optim import OptState, init_optimizer
 from rl_baselines.jax.policy import NumpyPolicy
 from rl_baselines.jax.rollout import EnvCarry, collect_rollout, reset_envs
+from rl_baselines.jax.spec import network_spec
 from rl_baselines.jax.storage import check_state_values
 from rl_baselines.jax.update import (
     Batch,
@@ -289,7 +290,10 @@ class JaxTrainer:
     tables (:mod:`amaze.envs.jax.params`) so that later mazes of other sizes
     (:meth:`set_mazes`) reuse the compiled code. ``chunk_steps``: env steps
     one compiled call covers at most (a power of two of rollouts, at least
-    one): Python is visited once per chunk. Bad values raise :class:`RLConfigError`.
+    one): Python is visited once per chunk. ``network``: a network spec
+    (:func:`~rl_baselines.jax.spec.network_spec`: evolution's ``hidden``,
+    ``activation``, ``pool``, ``symmetry``) instead of SB3's policy. Bad
+    values raise :class:`RLConfigError`.
     """
 
     def __init__(
@@ -305,6 +309,7 @@ class JaxTrainer:
         max_cells: int | None = None,
         max_codes: int | None = None,
         chunk_steps: int = CHUNK_STEPS,
+        network: Mapping[str, Any] | None = None,
     ) -> None:
         try:
             parsed = as_robot(robot)
@@ -315,7 +320,17 @@ class JaxTrainer:
             algo, hyperparameters or {}, robot_images=not parsed.discrete_inputs, n_envs=n_envs
         )
         check_rollout_size(hp.n_steps, hp.n_envs, observation_size(parsed), error=RLConfigError)
-        spec = PolicySpec(parsed.to_string(), hp.net_pi, hp.net_vf, hp.features_dim)
+        if network is None:
+            spec = PolicySpec(parsed.to_string(), hp.net_pi, hp.net_vf, hp.features_dim)
+        else:
+            if (hyperparameters or {}).get("policy_kwargs"):
+                raise RLConfigError(
+                    "hyperparameter 'policy_kwargs' with a network: the network gives the"
+                    " policy's layers (give one of them)"
+                )
+            spec = network_spec(parsed.to_string(), network)
+        #: The ``network`` spec as given (``None``: SB3's policy), for :meth:`settings`.
+        self.network = None if network is None else dict(network)
         self.static = Static(env, spec, hp)
         self.seed = check_integer("seed", seed, minimum=0, maximum=2**32 - 1, error=RLConfigError)
         self._padding = {
@@ -435,11 +450,12 @@ class JaxTrainer:
             "algo": hp.algo,
             "robot": self.static.spec.robot,
             "mazes": list(self.mazes),
-            "hyperparameters": hp.sb3_kwargs(),
+            "hyperparameters": hp.sb3_kwargs(policy=self.network is None),
             "seed": self.seed,
             "n_envs": hp.n_envs,
             **self._padding,
             "chunk_steps": self.chunk * hp.rollout_size,
+            "network": self.network,
         }
 
     def check_settings(self, expected: Mapping[str, Any], source: str) -> None:

@@ -15,6 +15,7 @@ import pytest
 
 from amaze.runs.anytime import EVALUATION_FIELDS
 from amaze.runs.checkpoint import read_checkpoint
+from amaze.runs.command import Terminated
 from amaze.runs.folder import ProgressLog
 from evolution import EvolutionConfigError
 from evolution.agent_file import load_agent, read_agent
@@ -294,6 +295,48 @@ def test_an_interrupted_run_says_what_is_saved_and_how_to_resume(
     assert "cmaes direct seed 0: 0% of 900 s; 0.0s elapsed; started" in stdout.replace(
         "0.1s", "0.0s"
     )
+
+
+@pytest.mark.parametrize(
+    ("interrupt", "status", "words"),
+    [(KeyboardInterrupt, 130, "interrupted"), (Terminated, 143, "terminated (SIGTERM)")],
+)
+def test_an_interrupt_inside_a_library_write_still_ends_the_run_as_an_interrupt(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    interrupt: type[KeyboardInterrupt],
+    status: int,
+    words: str,
+) -> None:
+    # A signal inside numpy's savez made its zip clean-up raise a ValueError
+    # of its own: the run ended with exit status 1 and a traceback.
+    def interrupted_save(self: EvolutionRun) -> None:
+        try:
+            raise interrupt
+        finally:
+            raise ValueError("Can't close the ZIP file while there is an open writing handle")
+
+    monkeypatch.setattr(EvolutionRun, "save_checkpoint", interrupted_save)
+    (tmp_path / "config.json").write_text(json.dumps(_config("cmaes")))
+    out = tmp_path / "run"
+    assert main(["--config", str(tmp_path / "config.json"), "--out", str(out)]) == status
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"{words}: {out} keeps what its last checkpoint saved;"
+        f" resume with: amaze-evolve --resume {out}"
+    ]
+
+
+def test_an_error_raised_with_no_interrupt_behind_it_is_not_taken_for_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def failing_save(self: EvolutionRun) -> None:
+        raise ValueError("a bug in the save")
+
+    monkeypatch.setattr(EvolutionRun, "save_checkpoint", failing_save)
+    (tmp_path / "config.json").write_text(json.dumps(_config("cmaes")))
+    with pytest.raises(ValueError, match="a bug in the save"):
+        main(["--config", str(tmp_path / "config.json"), "--out", str(tmp_path / "run")])
 
 
 def test_resuming_a_finished_run_says_so_and_changes_nothing(

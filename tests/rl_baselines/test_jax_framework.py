@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import csv
 import json
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +35,7 @@ from rl_baselines.jax.coevolution import JaxCoevolutionRun
 from rl_baselines.jax.run import JaxRun
 from rl_baselines.jax.trainer import JaxTrainer, run_rollouts
 from rl_baselines.train import SB3Run, TrainConfig, resume
+from tests.rl_baselines.jax_kill import Killed
 
 pytestmark = pytest.mark.slow
 
@@ -58,28 +58,6 @@ def _options(tmp_path: Path, **extra: Any) -> list[str]:
     path = tmp_path / "options.json"
     path.write_text(json.dumps({**PPO, **extra}))
     return ["--config", str(path)]
-
-
-class Killed(Exception):
-    """What the injected kill raises."""
-
-
-@pytest.fixture
-def kill_at(monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
-    """``kill_at(n)``: the n-th compiled training call from now raises :class:`Killed`."""
-    calls = {"left": None}
-    run = JaxTrainer.run
-
-    def killing(self: JaxTrainer, k: int) -> Any:
-        if calls["left"] is not None:
-            calls["left"] -= 1
-            if calls["left"] == 0:
-                calls["left"] = None
-                raise Killed
-        return run(self, k)
-
-    monkeypatch.setattr(JaxTrainer, "run", killing)
-    yield lambda n: calls.__setitem__("left", n)
 
 
 def _params(zip_path: Path) -> dict[str, np.ndarray]:

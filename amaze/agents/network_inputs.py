@@ -1,0 +1,69 @@
+"""What a fixed-topology network of either trainer reads: turned inputs and a pooled retina.
+
+Evolution's networks (:mod:`evolution.networks`) and the RL learners' shared
+network kind (:mod:`rl_baselines.jax.spec`) read a robot's observation the same
+way, so that one network spec means one network in both trainers:
+
+* **pooled retina**: an image robot's ``v x v`` uint8 image averaged over a
+  ``pool x pool`` grid of blocks (edges ``floor(linspace(0, v, pool + 1) +
+  0.5)``), pixels scaled to [0, 1]; discrete-input robots read their 8 floats;
+* **rotations**: with ``symmetry = "rotations"`` the logit of direction ``d``
+  is the network's single output on the inputs turned ``d`` quarter-turns
+  clockwise, gathered by :func:`rotation_index`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "ACTIVATIONS",
+    "DEFAULT_POOL",
+    "SYMMETRIES",
+    "pool_edges",
+    "pool_matrix",
+    "rotation_index",
+]
+
+#: Hidden-layer activations of the fixed-topology networks.
+ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
+#: Weight sharing across directions.
+SYMMETRIES: tuple[str, ...] = ("none", "rotations")
+#: Default side of the pooled grid of image robots.
+DEFAULT_POOL = 5
+
+
+def rotation_index(side: int | None) -> np.ndarray:
+    """int64 ``(4, n)``: row ``d`` gathers the inputs of the cell turned ``d`` times clockwise.
+
+    ``side`` None: the 8 inputs of DD robots (4 walls, then 4 signs, E, N, W,
+    S), each group shifted cyclically; else a ``side x side`` image (row 0
+    north), turned by ``np.rot90(grid, -d)``. After the gather, side ``d`` of
+    the cell lies east.
+    """
+    if side is None:
+        sides = np.array([[(d + j) % 4 for j in range(4)] for d in range(4)], dtype=np.int64)
+        return np.concatenate([sides, sides + 4], axis=1)
+    grid = np.arange(side * side, dtype=np.int64).reshape(side, side)
+    return np.stack([np.rot90(grid, -d).ravel() for d in range(4)])
+
+
+def pool_edges(vision: int, pool: int) -> np.ndarray:
+    """Block edges of the pooled grid along one image axis (``pool + 1`` integers)."""
+    return np.floor(np.linspace(0.0, vision, pool + 1) + 0.5).astype(np.int64)
+
+
+def pool_matrix(vision: int, pool: int) -> np.ndarray:
+    """float64 ``(vision * vision, pool * pool)``: pixels (row-major) to their block's mean / 255.
+
+    ``images.reshape(n, -1) @ pool_matrix(v, p)`` is the pooled retina, cell
+    ``r * pool + c`` the mean of block ``(r, c)`` scaled to [0, 1].
+    """
+    edges = pool_edges(vision, pool)
+    matrix = np.zeros((vision, vision, pool, pool), dtype=np.float64)
+    for r in range(pool):
+        for c in range(pool):
+            rows, cols = slice(edges[r], edges[r + 1]), slice(edges[c], edges[c + 1])
+            count = (edges[r + 1] - edges[r]) * (edges[c + 1] - edges[c])
+            matrix[rows, cols, r, c] = 1.0 / (255.0 * count)
+    return matrix.reshape(vision * vision, pool * pool)

@@ -1,0 +1,129 @@
+"""``amaze-train --framework jax`` with a ``network`` spec: evolution's network, trained by RL.
+
+A direct run trains the spec's actor-critic, hands over an evolved agent's
+file (``agent.npz``) that ``amaze evaluate`` plays with evolution's compiled
+networks to the figures the run reported, records the architecture in
+``summary.json``, and killed then resumed ends with the same agent bit for
+bit; what a network spec cannot do is refused in one line.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("jax")
+
+from amaze.cli.main import main as amaze_main
+from evolution.agent_file import read_agent
+from rl_baselines.cli import main
+from rl_baselines.jax.agent import NetworkAgent
+from rl_baselines.train import resume
+from tests.rl_baselines.jax_kill import Killed
+from tests.rl_baselines.test_jax_framework import COEVOLUTION, CURRICULUM, DIRECT
+
+pytestmark = pytest.mark.slow
+
+NETWORK = {"hidden": [16], "symmetry": "rotations"}
+
+
+def _config(tmp_path: Path, algo: str = "ppo", **extra: Any) -> list[str]:
+    path = tmp_path / "config.json"
+    hyperparameters = {"n_steps": 16}
+    if algo == "ppo":
+        hyperparameters.update(batch_size=32, n_epochs=2)
+    path.write_text(json.dumps({"hyperparameters": hyperparameters, **extra}))
+    return ["--config", str(path)]
+
+
+def test_a_direct_run_with_a_network_hands_over_an_evolved_agents_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    options = _config(tmp_path, network=NETWORK, agent_rule="best-eval")
+    assert main([*DIRECT, *options, "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["agent"] == "agent.npz" and not (out / "agent.zip").exists()
+    assert summary["network"] == {
+        "type": "mlp",
+        "robot": "DD",
+        "hidden": [16],
+        "activation": "tanh",
+        "pool": None,
+        "symmetry": "rotations",
+        "filters": 0,
+        "stride": None,
+    }
+    assert (out / "checkpoints" / "champion.npz").is_file()
+    arrays, metadata = read_agent(out / "agent.npz")
+    assert arrays["params"].shape == (8 * 16 + 16 + 16 + 1,)
+    assert metadata["trainer"] == "rl" and metadata["algorithm"] == "ppo"
+    capsys.readouterr()
+    # played by evolution's compiled network: the figures the run reported
+    assert amaze_main(["evaluate", str(out / "agent.npz"), "suite", "--json"]) == 0
+    evaluated = json.loads(capsys.readouterr().out)
+    assert evaluated["success_rate"] == summary["success_rate"]
+    assert evaluated["normalized_reward"] == pytest.approx(summary["normalized_reward"])
+
+
+@pytest.mark.parametrize("regime", ["edhucat", "coevolution"])
+def test_the_curricula_and_coevolution_train_a_network_and_hand_it_over(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], regime: str
+) -> None:
+    out = tmp_path / "run"
+    argv = CURRICULUM if regime == "edhucat" else COEVOLUTION
+    network = {"hidden": [8], "symmetry": "rotations"}
+    algo = "ppo" if regime == "edhucat" else "a2c"
+    assert main([*argv, *_config(tmp_path, algo, network=network), "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["agent"] == "agent.npz" and not (out / "agent.zip").exists()
+    assert summary["network"]["hidden"] == [8] and summary["network"]["symmetry"] == "rotations"
+    capsys.readouterr()
+    assert amaze_main(["evaluate", str(out / "agent.npz"), "suite", "--json"]) == 0
+    evaluated = json.loads(capsys.readouterr().out)
+    assert evaluated["success_rate"] == summary["success_rate"]
+
+
+def test_a_killed_run_with_a_network_resumes_to_the_same_agent_bit_for_bit(
+    tmp_path: Path, kill_at: Any
+) -> None:
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    options = _config(tmp_path, network={**NETWORK, "activation": "relu"})
+    assert main([*DIRECT, *options, "--out", str(whole)]) == 0
+    kill_at(4)
+    with pytest.raises(Killed):
+        main([*DIRECT, *options, "--out", str(cut)])
+    resume(cut)
+    a, b = NetworkAgent.load(whole / "agent.npz"), NetworkAgent.load(cut / "agent.npz")
+    assert a.policy.spec == b.policy.spec and a.policy.spec.activation == "relu"
+    for module, layer in a.policy.params.items():
+        for kind, value in layer.items():
+            assert np.array_equal(value, b.policy.params[module][kind]), (module, kind)
+
+
+@pytest.mark.parametrize(
+    ("extra", "options", "words"),
+    [
+        ({}, ["--framework", "sb3"], "has no effect with framework sb3"),
+        ({"network": {"hidden": [16], "pool": 3}}, [], "robot DD has no image to pool"),
+        ({"hyperparameters": {"policy_kwargs": {"net_arch": [8]}}}, [], "give one of them"),
+        ({"network": {"hidden": [16], "filters": 2}}, [], "'filters'"),
+    ],
+)
+def test_what_a_network_spec_cannot_do_is_refused_in_one_line(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    extra: dict,
+    options: list[str],
+    words: str,
+) -> None:
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps({"network": NETWORK, **extra}))
+    argv = ["--framework", "jax", "--config", str(path), *options, "--out", str(tmp_path / "r")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err

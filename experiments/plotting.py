@@ -4,7 +4,8 @@
   width (8.5 cm, :data:`COLUMN_WIDTH` inches): 7-8 pt text, thin lines;
 * :class:`Palette`: one colour per trainer/algorithm cell, the same in every
   figure of every report (:func:`cell_colour`, a fixed mapping from the
-  cell's name, whatever else a study holds), written once per report as
+  cell's name, whatever else a study holds; for an algorithm variant, from its
+  name and the study's ``[variants]``), written once per report as
   ``figures/colours.json``;
 * :func:`save_figure`: a figure as PNG (300 dpi), PDF and SVG side by side,
   each written atomically.
@@ -18,7 +19,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ __all__ = [
     "paper_style",
     "pyplot",
     "save_figure",
+    "variant_shifts",
 ]
 
 #: A journal column, 8.5 cm, in inches.
@@ -130,6 +132,8 @@ TRAINER_SLOTS = {
 #: the four algorithms of one trainer get four colours, the twelve trainers of one algorithm
 #: twelve).
 ALGORITHM_SHIFTS = {"cmaes": 0, "a2c": 3, "ppo": 6, "neat": 9}
+#: What a study's algorithm variants are: each variant's name and its base algorithm.
+Variants = Mapping[str, str]
 
 
 def _stable_index(name: str, size: int) -> int:
@@ -138,20 +142,49 @@ def _stable_index(name: str, size: int) -> int:
     return int.from_bytes(hashlib.sha256(name.encode("utf-8")).digest()[:8], "big") % size
 
 
-def cell_colour(cell: str) -> str:
+def variant_shifts(variants: Variants) -> dict[str, int]:
+    """Each algorithm variant's shift along :data:`COLOURS`: a place between the algorithms'.
+
+    The algorithms' shifts are multiples of 3, which leaves 8 places between them; the
+    variants, in the order of their names, take each the free place nearest after its
+    base's shift (``ppo-fast`` of ``ppo`` at 6: 7), so that up to 8 variants and the 4
+    algorithms all differ on one trainer; the 9th starts over. A study's variant names are
+    its own, so their colours follow from its ``[variants]`` (the same in each of its
+    reports), not from the name alone.
+    """
+    shifts: dict[str, int] = {}
+    taken: set[int] = set()
+    for name, base in sorted(variants.items()):
+        start = ALGORITHM_SHIFTS.get(base, 0)
+        places = [(start + step) % len(COLOURS) for step in range(1, len(COLOURS)) if step % 3]
+        free = [place for place in places if place not in taken]
+        if not free:
+            taken.clear()
+            free = places
+        shifts[name] = free[0]
+        taken.add(free[0])
+    return shifts
+
+
+def cell_colour(cell: str, variants: Variants | None = None) -> str:
     """The colour of a trainer/algorithm cell (``"direct/ppo"``), the same in every report.
 
     ``COLOURS[(TRAINER_SLOTS[trainer] + ALGORITHM_SHIFTS[algorithm]) % 12]``: it depends on
     the cell's name alone, not on the other cells of a study, so a treatment keeps its
     colour from one report to the next. The cells of one trainer, and those of one
-    algorithm, all differ (the default comparisons of a study). A trainer or an algorithm
-    of neither table (a plug-in's) takes a place from a stable hash of its name.
+    algorithm, all differ (the default comparisons of a study). An algorithm variant of
+    ``variants`` (a study's ``[variants]``: name and base) shifts by
+    :func:`variant_shifts`'s place instead, so that it differs from its base and the other
+    algorithms on the same trainer. A trainer or an algorithm of none of these (a
+    plug-in's) takes a place from a stable hash of its name.
     """
     trainer, algorithm = cell.split("/")[:2]
     slot = TRAINER_SLOTS.get(trainer)
     if slot is None:
         slot = _stable_index(f"trainer:{trainer}", len(COLOURS))
     shift = ALGORITHM_SHIFTS.get(algorithm)
+    if shift is None and variants and algorithm in variants:
+        shift = variant_shifts(variants)[algorithm]
     if shift is None:
         shift = 3 * _stable_index(f"algorithm:{algorithm}", 4)
     return COLOURS[(slot + shift) % len(COLOURS)]
@@ -160,17 +193,19 @@ def cell_colour(cell: str) -> str:
 class Palette:
     """The colours of a study's trainer/algorithm cells (``"direct/ppo"``), for its figures.
 
-    Each cell's colour is :func:`cell_colour`'s: fixed by the cell's name, so that a
-    treatment has one colour in every figure of every report. With more than 12 cells,
-    some share a colour (the figures also name them).
+    Each cell's colour is :func:`cell_colour`'s: fixed by the cell's name (and for an
+    algorithm variant, by the study's ``variants``: name and base), so that a treatment
+    has one colour in every figure of every report. With more than 12 cells, some share
+    a colour (the figures also name them).
     """
 
-    def __init__(self, cells: Sequence[str]) -> None:
-        self.colours = {cell: cell_colour(cell) for cell in sorted(set(cells))}
+    def __init__(self, cells: Sequence[str], variants: Variants | None = None) -> None:
+        self.variants = dict(variants or {})
+        self.colours = {cell: cell_colour(cell, self.variants) for cell in sorted(set(cells))}
 
     def __call__(self, treatment: str) -> str:
         """The colour of a cell or of a treatment (``trainer/algorithm[/condition]``)."""
-        return cell_colour(treatment)
+        return cell_colour(treatment, self.variants)
 
     def save(self, path: Path) -> Path:
         """Write the mapping as JSON (cell: colour), for figures made elsewhere."""

@@ -446,7 +446,7 @@ def _findings(folder: StudyFolder, study: Study) -> Findings:
     tests = comparisons(rows, study)
     write_bytes(folder.out / "tests.csv", to_csv(_test_rows(tests), TEST_COLUMNS))
     out = folder.out / "figures"
-    palette = Palette([run.cell for run in study.runs])
+    palette = Palette([run.cell for run in study.runs], study.variants)
     palette.save(out / "colours.json")
     compared = []
     for comparison in study.comparisons:

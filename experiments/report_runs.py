@@ -64,6 +64,8 @@ RUN_COLUMNS = (
     "eval_set_success_rate",
     "eval_set_normalized_reward",
     "evaluation_set",
+    "validation_success_rate",
+    "validation_normalized_reward",
     "advice_selections_taken",
     "advice_mazes_kept",
     "folder",
@@ -178,6 +180,12 @@ def _row(
         "eval_set_success_rate": math.nan,
         "eval_set_normalized_reward": math.nan,
         "evaluation_set": "",
+        # the champion's scores on the validation mazes (co-evolution regimes): what a
+        # sweep may tune on, never the suite, the evaluation set or the unseen mazes
+        "validation_success_rate": _number(summary.get("champion_validation_success_rate")),
+        "validation_normalized_reward": _number(
+            summary.get("champion_validation_normalized_reward")
+        ),
         # the shares of an advisor's proposals the run's decider took (empty: not advised)
         "advice_selections_taken": _number(advice.get("selections_taken_share")),
         "advice_mazes_kept": _number(advice.get("mazes_kept_share")),

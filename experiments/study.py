@@ -8,9 +8,12 @@ of ``docs/studies.md``; any TOML file of this form is a study::
     seeds = 5                         # seeds 0..4; or a list: seeds = [3, 7]
     robot = "DD"                      # or several: robot = ["DD", "H15"]
     trainers = ["direct", "interpolation", "edhucat-careful"]
-    algorithms = ["ppo", "cmaes"]
+    algorithms = ["ppo", "ppo-fast", "cmaes"]  # an algorithm, or a variant of one (below)
     suite = "standard"                # the final agents' scores in the report: the
                                       #   standard suite, or "paper" (Table 3's suite)
+
+    [variants]                        # algorithms at settings of their own: name = base
+    ppo-fast = "ppo"
 
     [budgets]                         # each budget is a treatment of its own
     steps = { steps = 1_000_000 }     # env steps
@@ -24,6 +27,10 @@ of ``docs/studies.md``; any TOML file of this form is a study::
     stages = 5
     [options."coevolution/ppo"]       #   a trainer/algorithm pair's (the last word)
     n_envs = 16
+    [options.ppo-fast]                #   a variant's: its own, not [options.ppo]'s
+    framework = "jax"
+    n_envs = 64
+    hyperparameters = { n_steps = 64, batch_size = 1024, n_epochs = 4 }
 
     [[exclude]]                       # cells of the grid left out
     trainer = "coevolution"
@@ -52,6 +59,13 @@ gives (by default the pairs that differ in one factor, else every pair;
 ``pairs = []``: none). ``robot`` picks one of the study's robots; without it a
 study of several robots gets the comparison once per robot (``name-robot``).
 Without ``[[comparisons]]``, a study gets :func:`default_comparisons`.
+
+An algorithm *variant* (``[variants]``: :func:`~experiments.trainers.parse_variants`)
+is an algorithm at settings of its own (PPO at SB3's defaults beside PPO at a
+throughput setting): its name goes wherever an algorithm's does, and
+``runs.csv``, the run folders and the report show it. Its runs are its base's
+(the config's ``algo``, run class and checks) with the options given under its
+own name, not the base's (``[options.ppo]``): a variant is a treatment of its own.
 """
 
 from __future__ import annotations
@@ -84,6 +98,7 @@ from experiments.trainers import (
     ALGORITHMS,
     EVOLUTION_ALGORITHMS,
     TRAINERS,
+    parse_variants,
     run_class,
     trainer_fields,
 )
@@ -105,7 +120,7 @@ STUDIES = files("experiments") / "studies"
 #: The keys a study file may have.
 STUDY_KEYS = frozenset(
     {"name", "description", "seeds", "robot", "trainers", "algorithms", "budgets", "options"}
-    | {"exclude", "comparisons", "suite"}
+    | {"exclude", "comparisons", "suite", "variants"}
 )
 
 #: The suites a study's report may score its final agents on (``suite`` in the study file).
@@ -166,6 +181,12 @@ class PlannedRun:
         return f"{self.trainer}/{self.algorithm}"
 
     @property
+    def base_algorithm(self) -> str:
+        """The algorithm that trains the run (its config's ``algo``): ``algorithm`` itself, or
+        the base of a variant (``ppo`` for ``ppo-fast``)."""
+        return self.config["algo"]
+
+    @property
     def budget_unit(self) -> str | None:
         """What the run's budget counts: ``"steps"`` when it has a steps budget, else ``"seconds"``.
 
@@ -203,6 +224,11 @@ class Study:
     def treatments(self) -> list[str]:
         """The treatments, in the file's order."""
         return list(dict.fromkeys(run.treatment for run in self.runs))
+
+    @property
+    def variants(self) -> dict[str, str]:
+        """The algorithm variants that have runs, each with its base: ``{"ppo-fast": "ppo"}``."""
+        return {r.algorithm: r.base_algorithm for r in self.runs if r.algorithm != r.base_algorithm}
 
     @property
     def conditions(self) -> list[str]:
@@ -298,14 +324,18 @@ def parse_study(text: str, source: str = "study") -> Study:
         raise bad(f"suite {_shown(suite)} is not one of {', '.join(SUITES)}")
     robots = _robots(data.get("robot", "DD"), bad)
     trainers = _names(data.get("trainers"), "trainers", TRAINERS, bad)
-    algorithms = _names(data.get("algorithms"), "algorithms", ALGORITHMS, bad)
+    variants = parse_variants(data.get("variants", {}), bad)
+    algorithms = _names(data.get("algorithms"), "algorithms", [*ALGORITHMS, *variants], bad)
+    unused = [name for name in variants if name not in algorithms]
+    if unused:
+        raise bad(f"variants: {', '.join(map(repr, unused))} declared but not in algorithms")
     budgets = _budgets(data.get("budgets"), bad)
     excluded = _excluded(data.get("exclude", []), bad)
     cells = [(t, a) for t in trainers for a in algorithms if (t, a) not in excluded]
     _check_size(len(robots), len(budgets), len(cells), len(seeds), bad)
     grid = Grid(tuple(budgets), tuple(robots), tuple(cells))
     comparisons = parse_comparisons(data.get("comparisons", []), grid, bad)
-    options = _options(data.get("options", {}), trainers, algorithms, bad)
+    options = _options(data.get("options", {}), [*ALGORITHMS, *variants], bad)
     curators = _CuratorCheck(bad)
     runs = []
     for robot in robots:
@@ -313,7 +343,8 @@ def parse_study(text: str, source: str = "study") -> Study:
         for budget_name, budget in budgets.items():
             for trainer, algorithm in cells:
                 for seed in seeds:
-                    config = _config(trainer, algorithm, budget, robot, seed, options)
+                    base = variants.get(algorithm, algorithm)
+                    config = _config(trainer, algorithm, base, budget, robot, seed, options)
                     run = PlannedRun(trainer, algorithm, budget_name, seed, config, shown)
                     runs.append(_checked(run, bad, curators))
     comparisons = comparisons or default_comparisons(grid)
@@ -421,17 +452,19 @@ def _budgets(value: Any, bad: Bad) -> dict[str, dict[str, Any]]:
     return budgets
 
 
-def _options(value: Any, trainers: list[str], algorithms: list[str], bad: Bad) -> dict[str, Any]:
+def _options(value: Any, algorithms: list[str], bad: Bad) -> dict[str, Any]:
+    """The ``[options]`` tables, keyed by ``all``, a trainer, one of ``algorithms`` (variants
+    included) or a ``trainer/algorithm`` pair."""
     if not isinstance(value, dict):
         raise bad(f"options {_shown(value)} is not a table")
     for key, table in value.items():
         trainer, _, algorithm = key.partition("/")
-        known = key == "all" or key in TRAINERS or key in ALGORITHMS
-        known = known or (trainer in TRAINERS and algorithm in ALGORITHMS)
+        known = key == "all" or key in TRAINERS or key in algorithms
+        known = known or (trainer in TRAINERS and algorithm in algorithms)
         if not known:
             raise bad(
-                f"options.{key_shown(key)}: not 'all', a trainer, an algorithm or a"
-                " trainer/algorithm pair"
+                f"options.{key_shown(key)}: not 'all', a trainer, an algorithm (or a variant)"
+                " or a trainer/algorithm pair"
             )
         if not isinstance(table, dict):
             raise bad(f"options.{key} {_shown(table)} is not a table")
@@ -466,15 +499,18 @@ def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
 def _config(
     trainer: str,
     algorithm: str,
+    base: str,
     budget: dict[str, Any],
     robot: str,
     seed: int,
     options: dict[str, Any],
 ) -> dict[str, Any]:
-    config: dict[str, Any] = {"algo": algorithm, "robot": robot, "seed": seed}
+    """The config of a run of ``trainer`` with ``algorithm`` (a variant of ``base``, or
+    ``base`` itself): ``[options.all]``'s, then the trainer's, the algorithm's and the pair's."""
+    config: dict[str, Any] = {"algo": base, "robot": robot, "seed": seed}
     config.update(trainer_fields(trainer))
     config.update(budget)
-    shared = _acting(options.get("all", {}), algorithm, config.get("regime", "direct"))
+    shared = _acting(options.get("all", {}), base, config.get("regime", "direct"))
     config = _merge(config, shared)
     for key in (trainer, algorithm, f"{trainer}/{algorithm}"):
         config = _merge(config, options.get(key, {}))
@@ -546,13 +582,13 @@ def _checked(run: PlannedRun, bad: Bad, curators: _CuratorCheck) -> PlannedRun:
 
     A curriculum's curator is built too (``curators``), checking its options.
     """
-    config_class = run_class(run.algorithm).config_class
+    config_class = run_class(run.base_algorithm).config_class
     try:
         checked = config_class.from_dict(run.config).validate()
-        if run.algorithm in EVOLUTION_ALGORITHMS:  # its options are checked when it starts
+        if run.base_algorithm in EVOLUTION_ALGORITHMS:  # its options are checked when it starts
             from evolution.algorithms import algorithm_class
 
-            algorithm_class(run.algorithm).config_class.from_dict(checked.algorithm)
+            algorithm_class(run.base_algorithm).config_class.from_dict(checked.algorithm)
     except (ValueError, TypeError) as problem:
         raise bad(f"run {run.id}: {_problem(problem)}") from None
     curators(run.id, checked)

@@ -6,21 +6,28 @@ regime, and for EDHuCAT the curator standing in for the paper's human) with
 runs it: ``a2c`` and ``ppo`` are :mod:`rl_baselines` (stable-baselines3),
 ``cmaes`` and ``neat`` are :mod:`evolution`. Both are imported only when a
 run needs them (torch is slow to import).
+
+A study may also name *variants* of an algorithm (``[variants]``, read by
+:func:`parse_variants`): ``ppo-fast = "ppo"`` is PPO at options of its own,
+a treatment apart from ``ppo``, run and checked as its base.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from amaze.errors import UsageError
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE
 from amaze.runs.lifecycle import Run
+from experiments.comparisons import NAME_RULE, is_name
 
 __all__ = [
     "ALGORITHMS",
     "DOMAIN_RANDOMISATION_MAZES",
     "RL_ALGORITHMS",
     "TRAINERS",
+    "parse_variants",
     "run_class",
     "trainer_fields",
 ]
@@ -79,3 +86,28 @@ def trainer_fields(trainer: Any) -> dict[str, Any]:
     if trainer not in TRAINERS:
         raise UsageError(f"trainer {trainer!r} (choose from {', '.join(TRAINERS)})")
     return dict(TRAINERS[trainer])
+
+
+def parse_variants(value: Any, bad: Callable[[str], Exception]) -> dict[str, str]:
+    """A study's ``[variants]``: each variant's name and its base, one of :data:`ALGORITHMS`.
+
+    ``bad`` makes the error of a bad value. A name is refused where it could be read as
+    another: an algorithm's, a trainer's, ``all`` (``[options.all]``), or one of these or
+    another variant's in other letter cases (run folders on a case-blind filesystem, the
+    report's ``PPO``); a base that is a variant is refused too (one level, no chains).
+    """
+    if not isinstance(value, dict):
+        raise bad(f"variants {value!r:.80} is not a table of names = algorithms")
+    taken = {name.lower() for name in (*ALGORITHMS, *TRAINERS, "all")}
+    for name, base in value.items():
+        if not is_name(name):
+            raise bad(f"variant name {name!r:.80} is not {NAME_RULE}")
+        if name.lower() in taken:
+            raise bad(f"variant name {name!r} is already an algorithm's, a trainer's or 'all'")
+        if not isinstance(base, str) or base not in ALGORITHMS:
+            raise bad(
+                f"variant {name!r} = {base!r:.80}: its base is not one of"
+                f" {', '.join(ALGORITHMS)} (a variant is of an algorithm, not of a variant)"
+            )
+        taken.add(name.lower())
+    return dict(value)

@@ -46,6 +46,7 @@ from amaze.runs.regime import RegimeConfig
 from amaze.validation import check_integer, check_number, closest
 from rl_baselines import RLConfigError
 from rl_baselines.jax.hyperparameters import SB3_DEFAULTS
+from rl_baselines.presets import PRESETS, preset_values
 from rl_baselines.protocols import (
     PROTOCOL_REGIMES,
     PROTOCOLS,
@@ -159,6 +160,14 @@ class TrainConfig(RegimeConfig):
         regimes=PROTOCOL_REGIMES,
     )
 
+    preset: str | None = option(
+        None,
+        "a named setting of the jax framework filling the options it names that the config"
+        " does not set: fast (many environments, large minibatches, the shared 16-unit"
+        " symmetric network; docs/trainers/rl.md)",
+        choices=tuple(PRESETS),
+    )
+
     @classmethod
     def from_dict(cls, data: Any) -> TrainConfig:
         """A checked config from a JSON object; a ``protocol`` fills only the keys it lacks."""
@@ -177,16 +186,10 @@ class TrainConfig(RegimeConfig):
             return
         if self.regime not in PROTOCOL_REGIMES:
             return  # refused with the options of other regimes (refuse_options_without_effect)
-        given = getattr(self, "_given", None)
-        if given is None:
-            given = {
-                f.name
-                for f in dataclasses.fields(self)
-                if getattr(self, f.name)
-                != (f.default if f.default_factory is dataclasses.MISSING else f.default_factory())
-            }
         try:
-            values = protocol_values(self.protocol, self.regime, self.budget_steps, given)
+            values = protocol_values(
+                self.protocol, self.regime, self.budget_steps, self._given_fields()
+            )
         except ValueError as problem:
             raise RLConfigError(f"protocol (--protocol): {problem}") from None
         for name, value in values.items():
@@ -195,6 +198,50 @@ class TrainConfig(RegimeConfig):
             self.hyperparameters = with_learning_rate(self.hyperparameters)
         self._protocol_applied = True
 
+    def _given_fields(self) -> set[str]:
+        """The fields the config was given: the keys of its JSON object (:meth:`from_dict`);
+        for a config built in Python, the fields away from their default."""
+        given = getattr(self, "_given", None)
+        if given is not None:
+            return set(given)
+        return {
+            f.name
+            for f in dataclasses.fields(self)
+            if getattr(self, f.name)
+            != (f.default if f.default_factory is dataclasses.MISSING else f.default_factory())
+        }
+
+    def _apply_preset(self) -> None:
+        """Fill the fields the ``preset`` names (:mod:`rl_baselines.presets`), if unset.
+
+        ``hyperparameters`` key by key. A preset and the paper's protocol are
+        two settings of the same options: refused together. Applied once.
+        """
+        if self.preset is None or getattr(self, "_preset_applied", False):
+            return
+        if self.protocol is not None:
+            raise RLConfigError(
+                f"preset {self.preset!r} with protocol {self.protocol!r}: the protocol runs the"
+                " paper's setting, the preset another one (give one of them)"
+            )
+        if not isinstance(self.hyperparameters, dict):
+            raise RLConfigError(f"hyperparameters {self.hyperparameters!r} is not a JSON object")
+        framework = PRESETS.get(self.preset, {}).get("framework")
+        if "framework" in self._given_fields() and framework not in (None, self.framework):
+            raise RLConfigError(
+                f"preset {self.preset!r} with framework {self.framework!r}: the preset is a"
+                f" setting of framework {framework} (give that framework, or none)"
+            )
+        try:
+            values = preset_values(
+                self.preset, str(self.algo).lower(), self._given_fields(), self.hyperparameters
+            )
+        except ValueError as problem:
+            raise RLConfigError(f"preset (--preset): {problem}") from None
+        for name, value in values.items():
+            setattr(self, name, value)
+        self._preset_applied = True
+
     def validate(self) -> TrainConfig:
         """Check every field; raise :class:`RLConfigError` naming the bad value."""
         if self.protocol is not None and self.protocol not in PROTOCOLS:
@@ -202,6 +249,7 @@ class TrainConfig(RegimeConfig):
                 f"unknown protocol {self.protocol!r} (choose from {', '.join(PROTOCOLS)})"
             )
         self._apply_protocol()
+        self._apply_preset()
         if not isinstance(self.algo, str) or self.algo.lower() not in SB3_DEFAULTS:
             raise RLConfigError(
                 f"unknown algorithm {self.algo!r} (choose from {', '.join(SB3_DEFAULTS)})"

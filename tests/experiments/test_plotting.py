@@ -14,6 +14,7 @@ from experiments.plotting import (
     TRAINER_SLOTS,
     Palette,
     cell_colour,
+    variant_shifts,
 )
 from experiments.report import write_report
 from experiments.study import PlannedRun, load_study
@@ -110,12 +111,13 @@ def test_the_cells_of_one_trainer_or_one_algorithm_all_differ() -> None:
 @pytest.mark.parametrize("path", sorted((ROOT / "experiments" / "studies").glob("*.toml")))
 def test_every_comparison_of_the_shipped_studies_has_distinct_colours(path: Path) -> None:
     study = load_study(path)
-    for comparison in study.comparisons:
-        colours = [cell_colour(treatment) for treatment in comparison.treatments]
-        assert len(set(colours)) == len(colours), comparison.name
     cells = {run.cell for run in study.runs}
+    palette = Palette(sorted(cells), study.variants)  # as the report makes it
+    for comparison in study.comparisons:
+        colours = [palette(treatment) for treatment in comparison.treatments]
+        assert len(set(colours)) == len(colours), comparison.name
     if len(cells) <= len(COLOURS):  # a study that can have one colour per cell has it
-        assert len({cell_colour(cell) for cell in cells}) == len(cells)
+        assert len({palette(cell) for cell in cells}) == len(cells)
 
 
 def test_a_name_of_no_table_takes_a_stable_colour() -> None:
@@ -137,3 +139,25 @@ def test_a_palette_does_not_depend_on_the_other_cells() -> None:
     whole = Palette(cells)
     for first, second in pairwise(cells):
         assert Palette([first, second]).colours == {c: whole(c) for c in (first, second)}
+
+
+def test_a_variant_takes_a_colour_beside_its_base_and_apart_from_every_algorithm() -> None:
+    """A study's variants (name: base) sit between the algorithms' places, each its own."""
+    variants = {f"ppo-s{i}": "ppo" for i in range(1, 9)}
+    assert variant_shifts({"ppo-fast": "ppo"}) == {"ppo-fast": ALGORITHM_SHIFTS["ppo"] + 1}
+    assert variant_shifts({"neat-big": "neat", "a2c-x": "a2c"}) == {"neat-big": 10, "a2c-x": 4}
+    # in the order of the names, whatever the order given: ppo-a before ppo-b
+    assert variant_shifts({"ppo-b": "ppo", "ppo-a": "ppo"}) == {"ppo-a": 7, "ppo-b": 8}
+    assert sorted(variant_shifts(variants).values()) == [1, 2, 4, 5, 7, 8, 10, 11]
+    for trainer in TRAINERS:  # 4 algorithms and 8 variants: 12 colours on each trainer
+        row = [cell_colour(f"{trainer}/{a}", variants) for a in (*ALGORITHMS, *variants)]
+        assert len(set(row)) == len(COLOURS), trainer
+    for variant in variants:
+        column = {cell_colour(f"{trainer}/{variant}", variants) for trainer in TRAINERS}
+        assert len(column) == len(TRAINERS), variant
+    assert variant_shifts({**variants, "ppo-s9": "ppo"})["ppo-s9"] == 7  # the 9th starts over
+    palette = Palette(["direct/ppo", "direct/ppo-fast"], {"ppo-fast": "ppo"})
+    assert palette("direct/ppo-fast/steps") == palette.colours["direct/ppo-fast"]
+    assert palette.colours["direct/ppo-fast"] == COLOURS[TRAINER_SLOTS["direct"] + 7]
+    assert palette.colours["direct/ppo-fast"] != palette.colours["direct/ppo"]
+    assert cell_colour("direct/ppo", {"ppo-fast": "ppo"}) == cell_colour("direct/ppo")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import signal
@@ -93,6 +94,59 @@ def test_a_failed_run_is_reported_and_tried_again(
     (folder.run_folder(study.runs[0]) / "notes.txt").unlink()
     assert main(["run", str(tmp_path / "tiny.toml"), "--out", str(out)]) == 0
     assert study_status(out)[1][0].state == "done"
+    capsys.readouterr()
+
+
+#: CMA-ES and a variant of it at another population size, a few thousand env steps each.
+VARIANT_STUDY = """
+name = "variant"
+trainers = ["direct"]
+algorithms = ["cmaes", "cmaes-small"]
+
+[variants]
+cmaes-small = "cmaes"
+
+[budgets]
+steps = { steps = 4_000 }
+
+[options.all]
+mazes = ["M1_5x5_C1"]
+
+[options.cmaes-small]
+algorithm = { population_size = 6 }
+"""
+
+
+@pytest.mark.slow
+def test_a_study_with_a_variant_runs_reports_and_resumes_under_the_variant_s_name(
+    tmp_path: Path, capsys
+) -> None:
+    (tmp_path / "variant.toml").write_text(VARIANT_STUDY)
+    out = tmp_path / "study"
+    argv = ["run", str(tmp_path / "variant.toml"), "--out", str(out), "--workers", "2"]
+    assert main(argv) == 0
+    assert main(["report", str(out)]) == 0
+    folder = StudyFolder(out)
+    base, small = folder.study().runs
+    assert (small.id, small.base_algorithm) == ("direct_cmaes-small_steps_seed-0", "cmaes")
+    config = json.loads((folder.run_folder(small) / "config.json").read_text())
+    assert (config["algo"], config["algorithm"]["population_size"]) == ("cmaes", 6)
+    summary = json.loads((folder.run_folder(small) / "summary.json").read_text())
+    assert summary["env_steps"] >= 4_000
+    with (out / "runs.csv").open() as handle:
+        rows = {row["algorithm"]: row for row in csv.DictReader(handle)}
+    assert set(rows) == {"cmaes", "cmaes-small"}
+    assert rows["cmaes-small"]["treatment"] == "direct/cmaes-small/steps"
+    assert rows["cmaes-small"]["folder"] == "runs/direct_cmaes-small_steps_seed-0"
+    report = (out / "report.md").read_text()
+    assert "CMAES-SMALL" in report
+    colours = json.loads((out / "figures" / "colours.json").read_text())
+    assert colours["direct/cmaes"] != colours["direct/cmaes-small"]
+    # the folder's study.toml is read back: run again, nothing is redone
+    assert main(argv) == 0
+    assert [s.state for s in study_status(out)[1]] == ["done", "done"]
+    for run in (base, small):
+        assert folder.log_file(run).read_text().count("started by the study runner") == 1
     capsys.readouterr()
 
 

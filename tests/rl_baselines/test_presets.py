@@ -55,3 +55,35 @@ def test_what_the_preset_cannot_do_is_refused_by_name(data: dict, words: str) ->
     with pytest.raises(RLConfigError) as caught:
         TrainConfig.from_dict(data)
     assert words in str(caught.value)
+
+
+def test_ppo_at_the_fast_preset_solves_a_small_maze(tmp_path) -> None:
+    """A short learning run of the preset: its agent plays every rotation of the maze optimally."""
+    pytest.importorskip("jax")
+    from amaze.evaluation.protocol import Evaluator
+    from amaze.maze import rotations
+    from rl_baselines.jax.agent import NetworkAgent
+    from rl_baselines.jax.trainer import JaxTrainer
+    from rl_baselines.train import train
+
+    maze, seed = "M7_8x8_C1", 3
+    evaluator = Evaluator("DD", mazes=list(rotations(maze)), inputs=False)
+    # the untrained network of this seed fails the maze: what solves it is the training
+    untrained = JaxTrainer("ppo", "DD", [maze], seed=seed, network=PRESETS["fast"]["network"])
+    assert evaluator.evaluate(untrained.policy()).summary()["success_rate"] < 1.0
+    config = {
+        "preset": "fast",
+        "seed": seed,
+        "mazes": [maze],
+        "eval_mazes": [maze],
+        "agent_rule": "best-eval",
+        "budget_steps": 1_048_576,
+        "eval_every": 65_536,
+        "evaluation_points": 2,
+        "evaluation_family": 1,
+    }
+    result = train(config, tmp_path / "run", progress="off")
+    assert result.summary["agent"] == "agent.npz"
+    assert result.summary["agent_steps"] > 0
+    agent = NetworkAgent.load(tmp_path / "run" / "agent.npz")
+    assert evaluator.evaluate(agent).summary()["success_rate"] == 1.0

@@ -57,7 +57,10 @@ MAX_RUNS_CSV_BYTES = 64 * 2**20
 #: Resamples of each bootstrap interval.
 RESAMPLES = 10_000
 #: The columns an ablation needs in a ``runs.csv``.
-NEEDED = ("treatment", "seed", *METRICS, "normalized_reward", "input_recognition")
+NEEDED = ("treatment", "seed", "success_rate", "normalized_reward", "input_recognition")
+#: The columns it reads where a ``runs.csv`` has them (studies reported before the paper's
+#: suite was scored lack them: their metrics are left out of the comparison).
+OPTIONAL = tuple(c for c in (*METRICS, *(w[2] for w in WITHIN_RUN)) if c not in NEEDED)
 
 
 class AblationError(AmazeError):
@@ -88,8 +91,8 @@ def read_runs_csv(path: str | Path) -> list[dict[str, float | str]]:
     rows: list[dict[str, float | str]] = []
     for line, row in enumerate(reader, start=2):
         parsed: dict[str, float | str] = {"treatment": row["treatment"], "seed": row["seed"]}
-        for column in NEEDED[2:]:
-            text = row[column].strip()
+        for column in (*NEEDED[2:], *OPTIONAL):
+            text = (row.get(column) or "").strip()
             try:
                 parsed[column] = float(text) if text else math.nan
             except ValueError:

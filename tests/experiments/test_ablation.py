@@ -86,9 +86,25 @@ def test_the_command_writes_the_table_and_refuses_bad_files(
     broken = tmp_path / "broken"
     broken.mkdir()
     (broken / "runs.csv").write_text("treatment,seed\nt,0\n")
-    with pytest.raises(AblationError, match="has no column paper_suite_success_rate, "):
+    with pytest.raises(AblationError, match="has no column success_rate, normalized_reward, "):
         ablation_report(base, [broken])
     text = (base / "runs.csv").read_text().replace("0.2,", "zero,", 1)
     (broken / "runs.csv").write_text(text)
     with pytest.raises(AblationError, match="is not a number"):
         read_runs_csv(broken)
+
+
+def test_a_study_reported_before_the_papers_suite_is_compared_on_the_standard_suite(
+    tmp_path: Path,
+) -> None:
+    base = _write(tmp_path / "base", [0.2, 0.25, 0.3])
+    old = tmp_path / "old"
+    old.mkdir()
+    text = (base / "runs.csv").read_text().splitlines()
+    keep = [i for i, c in enumerate(text[0].split(",")) if not c.startswith("paper_")]
+    (old / "runs.csv").write_text(
+        "\n".join(",".join(line.split(",")[i] for i in keep) for line in text) + "\n"
+    )
+    records = between_studies(read_runs_csv(old), read_runs_csv(base), "new")
+    assert [r["metric"] for r in records] == ["success (standard suite)"]
+    assert within_runs(read_runs_csv(old)) == []

@@ -46,19 +46,17 @@ def _one_core(cpu: int) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 
-def jax_rates(algo: str, steps: int, repeats: int, robot: str = "DD") -> dict[str, Any]:
-    """JAX ``algo``'s env steps/s of ``learn(steps)``, after a compiling first call."""
+def learn_rate(trainer: Any, steps: int, repeats: int) -> tuple[float, float]:
+    """``(env steps/s of trainer.learn(steps), median of repeats; seconds of the first call)``.
+
+    The first call (at most one compiled block) compiles; its seconds are apart.
+    """
     import jax
 
-    from amaze.evaluation.suite import PAPER_TRAINING_MAZE
-    from amaze.maze import rotations
-    from rl_baselines.jax import JaxTrainer
-
-    trainer = JaxTrainer(algo, robot, rotations(PAPER_TRAINING_MAZE), {}, seed=0, n_envs=4)
     start = time.perf_counter()
     trainer.learn(min(steps, trainer.chunk * trainer.hyperparameters.rollout_size))
     jax.block_until_ready(trainer.state)
-    compile_s = time.perf_counter() - start
+    first_call = time.perf_counter() - start
     rates = []
     for _ in range(repeats):
         before = trainer.num_timesteps
@@ -66,9 +64,21 @@ def jax_rates(algo: str, steps: int, repeats: int, robot: str = "DD") -> dict[st
         trainer.learn(steps)
         jax.block_until_ready(trainer.state)
         rates.append((trainer.num_timesteps - before) / (time.perf_counter() - start))
+    return statistics.median(rates), first_call
+
+
+def jax_rates(algo: str, steps: int, repeats: int, robot: str = "DD") -> dict[str, Any]:
+    """JAX ``algo``'s env steps/s of ``learn(steps)``, after a compiling first call."""
+
+    from amaze.evaluation.suite import PAPER_TRAINING_MAZE
+    from amaze.maze import rotations
+    from rl_baselines.jax import JaxTrainer
+
+    trainer = JaxTrainer(algo, robot, rotations(PAPER_TRAINING_MAZE), {}, seed=0, n_envs=4)
+    rate, compile_s = learn_rate(trainer, steps, repeats)
     return {
         "algo": f"jax-{algo}",
-        "steps_per_s": statistics.median(rates),
+        "steps_per_s": rate,
         "first_call_s": compile_s,
     }
 

@@ -24,11 +24,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
-import time
 from typing import Any
 
-ONE_CORE_XLA = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+# run as a script: its folder is on the path
+from bench_jax_rl import ONE_CORE_XLA, learn_rate
 
 
 def rate(
@@ -40,8 +39,6 @@ def rate(
     repeats: int,
 ) -> dict[str, Any]:
     """Env steps/s of ``learn(steps)`` (median of ``repeats``) after a compiling first call."""
-    import jax
-
     from amaze.evaluation.suite import PAPER_TRAINING_MAZE
     from amaze.maze import rotations
     from rl_baselines.jax import JaxTrainer
@@ -50,20 +47,10 @@ def rate(
     trainer = JaxTrainer(
         "ppo", robot, mazes, hyperparameters, seed=0, n_envs=n_envs, network=network
     )
-    rollout = trainer.hyperparameters.rollout_size
-    start = time.perf_counter()
-    trainer.learn(trainer.chunk * rollout)
-    jax.block_until_ready(trainer.state)
-    first_call = time.perf_counter() - start
-    steps = max(steps, trainer.chunk * rollout)
-    rates = []
-    for _ in range(repeats):
-        before = trainer.num_timesteps
-        start = time.perf_counter()
-        trainer.learn(steps)
-        jax.block_until_ready(trainer.state)
-        rates.append((trainer.num_timesteps - before) / (time.perf_counter() - start))
-    return {"steps_per_s": statistics.median(rates), "first_call_s": first_call}
+    # at least one whole compiled block a repeat
+    steps = max(steps, trainer.chunk * trainer.hyperparameters.rollout_size)
+    steps_per_s, first_call = learn_rate(trainer, steps, repeats)
+    return {"steps_per_s": steps_per_s, "first_call_s": first_call}
 
 
 def main() -> None:

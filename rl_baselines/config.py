@@ -86,9 +86,9 @@ class TrainConfig(RegimeConfig):
 
     error = RLConfigError
     options_field = "hyperparameters"
-    #: coevolution included (rl_baselines.coevolution); edens-populations, whose
-    #: alternatives copy the learner every epoch, is evolution's only.
-    supported_regimes = tuple(r for r in REGIMES if r != "edens-populations")
+    #: every regime; edens-populations, whose alternatives copy the learner every epoch,
+    #: with the jax framework only (its training state is data; SB3's model is not)
+    supported_regimes = REGIMES
     agent_rules = ("final", *EVALUATION_RULES)
     #: An open-ended curriculum's epoch: the paper's 100 k steps a branch at 3 M steps, K = 3.
     default_epochs = 10
@@ -326,6 +326,12 @@ class TrainConfig(RegimeConfig):
                 f"framework {self.framework!r} is unknown (choose from {', '.join(FRAMEWORKS)})"
             )
         if self.framework != "jax":
+            if self.regime == "edens-populations":
+                raise RLConfigError(
+                    f"regime edens-populations with framework {self.framework}: its alternatives"
+                    " copy the learner every epoch, which only the jax framework's training"
+                    " state allows (give framework jax)"
+                )
             if self.network is not None:
                 raise RLConfigError(
                     f"network {self.network!r} has no effect with framework {self.framework}:"

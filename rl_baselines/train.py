@@ -180,14 +180,19 @@ class SB3Run(DirectRun):
         SB3: :class:`SB3CurriculumRun` for the curriculum regimes,
         :class:`SB3CoevolutionRun` for coevolution, this class for direct.
         JAX (``framework`` jax): :class:`~rl_baselines.curriculum.JaxCurriculumRun`,
-        :class:`~rl_baselines.jax.coevolution.JaxCoevolutionRun` or
-        :class:`~rl_baselines.jax.run.JaxRun`.
+        :class:`~rl_baselines.jax.coevolution.JaxCoevolutionRun`,
+        :class:`~rl_baselines.jax.edens_populations.JaxEdensPopulationsRun` (the only
+        framework of edens-populations) or :class:`~rl_baselines.jax.run.JaxRun`.
         """
         jax = getattr(config, "framework", "sb3") == "jax"
         if getattr(config, "is_curriculum", False):
             from rl_baselines.curriculum import JaxCurriculumRun, SB3CurriculumRun
 
             return JaxCurriculumRun if jax else SB3CurriculumRun
+        if getattr(config, "regime", None) == "edens-populations":
+            from rl_baselines.jax.edens_populations import JaxEdensPopulationsRun
+
+            return JaxEdensPopulationsRun  # the config refuses SB3 here
         if getattr(config, "regime", None) == "coevolution":
             if jax:
                 from rl_baselines.jax.coevolution import JaxCoevolutionRun

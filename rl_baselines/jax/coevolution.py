@@ -124,8 +124,11 @@ class JaxCoevolutionRun(NetworkRunFiles, RLCoevolutionRun):
 
     def train_round(self, rollouts: int) -> EndedEpisodes:
         assert self.trainer is not None
+        before = self.trainer.num_timesteps
         stats = self.trainer.run(rollouts)
-        self.state.steps = self.trainer.num_timesteps
+        # added, not copied: in edens-populations the trainer's counter goes back with the
+        # parent's state at every alternative, while every alternative's steps count
+        self.state.steps += self.trainer.num_timesteps - before
         return EndedEpisodes(
             stats.episodes.sum(axis=0),
             stats.successes.sum(axis=0).astype(np.float64),

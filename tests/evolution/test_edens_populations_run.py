@@ -154,8 +154,8 @@ def test_edens_populations_config_refusals(changes: dict, bad: str) -> None:
         EvolveConfig.from_dict({**CONFIG, **changes})
 
 
-def test_rl_refuses_the_regime() -> None:
-    with pytest.raises(RLConfigError, match="'edens-populations' is not run by this trainer"):
+def test_rl_refuses_the_regime_with_sb3() -> None:
+    with pytest.raises(RLConfigError, match="edens-populations with framework sb3"):
         TrainConfig.from_dict({"regime": "edens-populations"})
 
 

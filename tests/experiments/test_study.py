@@ -119,8 +119,11 @@ def test_every_shipped_study_loads() -> None:
     assert {r.config["budget_steps"] for r in paper.runs} == {3_000_000}
     assert len(paper.runs) == 3 * 2 * 10
     evo = load_study("evo-vs-rl")
-    assert {r.algorithm for r in evo.runs} == {"a2c", "ppo", "cmaes", "neat"}
+    assert {r.algorithm for r in evo.runs} == {"cmaes", "neat", "ppo", "ppo-fast", "a2c-fast"}
     assert {r.budget for r in evo.runs} == {"steps", "clock"}
+    assert len(evo.runs) == 4 * 5 * 2 * 5
+    jax = [r.config for r in evo.runs if r.algorithm in ("ppo", "ppo-fast", "a2c-fast")]
+    assert {c["framework"] for c in jax} == {"jax"}  # edens-populations copies the learner
 
 
 def test_the_mixed_study_compares_a_strategy_an_algorithm_and_both_at_an_equal_budget() -> None:

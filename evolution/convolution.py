@@ -32,6 +32,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from amaze.agents.network_inputs import (
+    FILTER_SIDE,
+    MAX_FILTERS,
+    default_stride,
+    grid_side,
+    stride_problem,
+)
 from amaze.validation import check_integer
 from evolution import EvolutionConfigError
 from evolution.activations import activate
@@ -47,32 +54,13 @@ __all__ = [
     "turned_filters",
 ]
 
-#: Side of a filter.
-FILTER_SIDE = 3
-#: Most filters a network may have (a sanity bound).
-MAX_FILTERS = 64
-
-
-def default_stride(vision: int) -> int:
-    """The largest stride of 3, 2 and 1 that tiles a ``vision``-pixel retina."""
-    return next(s for s in (3, 2, 1) if (vision - FILTER_SIDE) % s == 0)
-
-
 def check_stride(stride: object, vision: int) -> int:
     """``stride`` checked: 1 to 3 (no pixel skipped), tiling the ``vision``-pixel retina."""
     stride = check_integer("stride", stride, minimum=1, maximum=3, error=EvolutionConfigError)
-    if (vision - FILTER_SIDE) % stride:
-        raise EvolutionConfigError(
-            f"stride {stride} does not tile a retina of {vision} pixels"
-            f" ({vision} - {FILTER_SIDE} is not a multiple of it): give"
-            f" {' or '.join(str(s) for s in (3, 2, 1) if (vision - FILTER_SIDE) % s == 0)}"
-        )
+    problem = stride_problem(stride, vision)
+    if problem:
+        raise EvolutionConfigError(problem)
     return stride
-
-
-def grid_side(vision: int, stride: int) -> int:
-    """Side of a feature map: positions of a filter along one axis of the retina."""
-    return (vision - FILTER_SIDE) // stride + 1
 
 
 def turned_filters(weights: np.ndarray, biases: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

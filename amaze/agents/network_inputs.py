@@ -7,6 +7,9 @@ way, so that one network spec means one network in both trainers:
 * **pooled retina**: an image robot's ``v x v`` uint8 image averaged over a
   ``pool x pool`` grid of blocks (edges ``floor(linspace(0, v, pool + 1) +
   0.5)``), pixels scaled to [0, 1]; discrete-input robots read their 8 floats;
+* **convolution**: ``filters`` 3x3 filters slid over the image with a
+  ``stride`` that tiles it (:func:`stride_problem`, :func:`default_stride`),
+  ``grid x grid`` positions (:func:`grid_side`), pixels scaled to [0, 1];
 * **rotations**: with ``symmetry = "rotations"`` the logit of direction ``d``
   is the network's single output on the inputs turned ``d`` quarter-turns
   clockwise, gathered by :func:`rotation_index`.
@@ -19,10 +22,15 @@ import numpy as np
 __all__ = [
     "ACTIVATIONS",
     "DEFAULT_POOL",
+    "FILTER_SIDE",
+    "MAX_FILTERS",
     "SYMMETRIES",
+    "default_stride",
+    "grid_side",
     "pool_edges",
     "pool_matrix",
     "rotation_index",
+    "stride_problem",
 ]
 
 #: Hidden-layer activations of the fixed-topology networks.
@@ -31,6 +39,31 @@ ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
 SYMMETRIES: tuple[str, ...] = ("none", "rotations")
 #: Default side of the pooled grid of image robots.
 DEFAULT_POOL = 5
+#: Side of a convolution's filter.
+FILTER_SIDE = 3
+#: Most filters a network may have (a sanity bound).
+MAX_FILTERS = 64
+
+
+def default_stride(vision: int) -> int:
+    """The largest stride of 3, 2 and 1 that tiles a ``vision``-pixel retina."""
+    return next(s for s in (3, 2, 1) if (vision - FILTER_SIDE) % s == 0)
+
+
+def stride_problem(stride: int, vision: int) -> str | None:
+    """Why ``stride`` (1 to 3) does not tile a ``vision``-pixel retina, or None when it does."""
+    if (vision - FILTER_SIDE) % stride == 0:
+        return None
+    fitting = " or ".join(str(s) for s in (3, 2, 1) if (vision - FILTER_SIDE) % s == 0)
+    return (
+        f"stride {stride} does not tile a retina of {vision} pixels"
+        f" ({vision} - {FILTER_SIDE} is not a multiple of it): give {fitting}"
+    )
+
+
+def grid_side(vision: int, stride: int) -> int:
+    """Side of a feature map: positions of a filter along one axis of the retina."""
+    return (vision - FILTER_SIDE) // stride + 1
 
 
 def rotation_index(side: int | None) -> np.ndarray:

@@ -151,14 +151,10 @@ class RLAgentFileError(RLConfigError, AgentFileError):
 def _spec_of(metadata: Mapping[str, Any], where: str) -> PolicySpec:
     """The ``network`` kind's spec an agent file's metadata describes, or the error naming it."""
     architecture = metadata["architecture"]
-    if (
-        architecture.get("type") != "mlp"
-        or architecture.get("filters", 0)
-        or architecture.get("stride")
-    ):
+    if architecture.get("type") != "mlp":
         raise RLAgentFileError(
             f"{where}: architecture {architecture!r} is not a network the RL learners train"
-            " (a dense network without filters)"
+            " (a fixed-topology network, not a NEAT genome)"
         )
     network = {key: architecture[key] for key in NETWORK_KEYS if key in architecture}
     try:

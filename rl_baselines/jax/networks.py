@@ -47,10 +47,13 @@ MLP layers are numbered ``0, 2, 4...`` as in SB3's ``nn.Sequential`` (Linear,
 Tanh, Linear, ...).
 
 A ``network`` kind's policy (:mod:`rl_baselines.jax.spec`) has the same
-modules without the CNN: the MLPs read the 8 floats or the pooled retina,
-with the spec's activation; with rotations, ``action_net`` and ``value_net``
-have one output, scored on each of the four turned views (the logits of the
-four directions; the value their mean).
+modules without the CNN: the MLPs read the 8 floats, the pooled retina or the
+maps of its ``features_extractor.filters`` (3x3, slid with the spec's stride
+over the image / 255, then the activation; ``(F, 1, 3, 3)``, ``(F,)``), with
+the spec's activation; with rotations, ``action_net`` and ``value_net`` have
+one output, scored on each of the four turned views (the logits of the four
+directions; the value their mean); a convolution reads the image turned
+``d`` quarter-turns clockwise for direction ``d``.
 """
 
 from __future__ import annotations
@@ -61,7 +64,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from rl_baselines.jax.spec import CONV1, CONV2, LINEAR, N_ACTIONS, PolicySpec
+from rl_baselines.jax.spec import CONV1, CONV2, FILTERS, LINEAR, N_ACTIONS, PolicySpec
 
 __all__ = [
     "N_ACTIONS",
@@ -163,12 +166,26 @@ _ACTIVATIONS = {
 }
 
 
+def _filter_maps(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
+    """A ``network`` kind's convolution: ``(n, filters x grid^2)`` maps, filter-major;
+    with rotations ``(n, 4, filters x grid^2)``, those of the image turned ``d`` times."""
+    patches = spec.filter_patches(obs, jnp)
+    layer = params[FILTERS]
+    weight = layer["weight"].reshape(spec.filters, -1)
+    maps = jnp.einsum("fk,nkij->nfij", weight, patches) + layer["bias"][None, :, None, None]
+    maps = _ACTIVATIONS[spec.activation](maps)
+    shape = (obs.shape[0], 4, -1) if spec.copies == 4 else (obs.shape[0], -1)
+    return maps.reshape(shape)
+
+
 def _features(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
     """SB3's ``extract_features``: the floats as they are, or SmallCNN on images / 255.
 
-    A ``network`` kind: the 8 floats or the pooled retina, and with rotations
-    the four turned views, ``(n, 4, n_inputs)``.
+    A ``network`` kind: the 8 floats, the pooled retina or the filters' maps,
+    and with rotations the four turned views, ``(n, 4, n_inputs)``.
     """
+    if spec.kind == "network" and spec.filters:
+        return _filter_maps(spec, params, obs)
     if spec.kind == "network":
         x = obs.astype(jnp.float32).reshape(obs.shape[0], -1)
         if spec.pool is not None:

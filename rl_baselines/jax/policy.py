@@ -23,7 +23,7 @@ import numpy as np
 
 from amaze.agents.robot import Robot
 from rl_baselines import RLConfigError
-from rl_baselines.jax.spec import CONV1, CONV2, LINEAR, PolicySpec
+from rl_baselines.jax.spec import CONV1, CONV2, FILTERS, LINEAR, PolicySpec
 
 __all__ = ["NumpyPolicy"]
 
@@ -53,6 +53,18 @@ def _conv3x3(layer: Mapping[str, np.ndarray], x: np.ndarray) -> np.ndarray:
     return out.reshape(n, -1, h, w)
 
 
+def _filter_maps(
+    spec: PolicySpec, layer: Mapping[str, np.ndarray], observations: np.ndarray
+) -> np.ndarray:
+    """A ``network`` kind's convolution, as :mod:`rl_baselines.jax.networks` computes it."""
+    patches = spec.filter_patches(observations, np)
+    weight = layer["weight"].reshape(spec.filters, -1)
+    maps = np.einsum("fk,nkij->nfij", weight, patches) + layer["bias"][None, :, None, None]
+    maps = _ACTIVATIONS[spec.activation](maps).astype(np.float32)
+    n = observations.shape[0]
+    return maps.reshape(n, 4, -1) if spec.copies == 4 else maps.reshape(n, -1)
+
+
 class NumpyPolicy:
     """Deterministic actions of an SB3 actor-critic's parameters (see the module docstring).
 
@@ -72,7 +84,7 @@ class NumpyPolicy:
         self.spec = spec
         self.robot: Robot = spec.parsed_robot
         self.params: dict[str, dict[str, np.ndarray]] = {}
-        if spec.kind == "network":
+        if spec.kind == "network" and not spec.filters:
             self._turns = spec.turns()
             self._pooling = spec.pooling() if spec.pool is not None else None
         for module, shape in spec.layer_shapes().items():
@@ -92,6 +104,8 @@ class NumpyPolicy:
 
     def _features(self, observations: np.ndarray) -> np.ndarray:
         x = np.asarray(observations)
+        if self.spec.kind == "network" and self.spec.filters:
+            return _filter_maps(self.spec, self.params[FILTERS], x)
         if self.spec.kind == "network":
             x = x.reshape(x.shape[0], -1).astype(np.float32)
             if self.spec.pool is not None:

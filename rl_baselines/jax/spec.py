@@ -11,8 +11,10 @@ Two kinds of policy:
   :class:`~rl_baselines.networks.SmallCNN` (hybrid robots), Tanh; an agent is
   saved as an SB3 zip;
 * ``network``: the fixed-topology network of evolution's ``network`` spec
-  (:mod:`amaze.agents.network_inputs`): the 8 floats or the pooled retina,
-  hidden layers of ``activation``, and with ``symmetry = "rotations"`` one
+  (:mod:`amaze.agents.network_inputs`): the 8 floats, the pooled retina or
+  the feature maps of ``filters`` 3x3 filters slid with ``stride`` (shared by
+  the actor and the critic, as SB3 shares its features extractor), hidden
+  layers of ``activation``, and with ``symmetry = "rotations"`` one
   network scored on each turned view (the actor's logit of direction ``d``
   from the inputs turned ``d`` quarter-turns, the critic the mean of its
   four turned values, so invariant under turns). The actor is exactly an
@@ -31,15 +33,29 @@ import numpy as np
 from amaze.agents.network_inputs import (
     ACTIVATIONS,
     DEFAULT_POOL,
+    FILTER_SIDE,
+    MAX_FILTERS,
     SYMMETRIES,
+    default_stride,
+    grid_side,
     pool_matrix,
     rotation_index,
+    stride_problem,
 )
 from amaze.agents.robot import Robot, as_robot
 from amaze.validation import check_integer, check_layer_widths, closest
 from rl_baselines import RLConfigError
 
-__all__ = ["CONV1", "CONV2", "KINDS", "LINEAR", "N_ACTIONS", "PolicySpec", "network_spec"]
+__all__ = [
+    "CONV1",
+    "CONV2",
+    "FILTERS",
+    "KINDS",
+    "LINEAR",
+    "N_ACTIONS",
+    "PolicySpec",
+    "network_spec",
+]
 
 #: Discrete actions of AMaze's robots: E, N, W, S.
 N_ACTIONS = 4
@@ -53,10 +69,12 @@ CONV1, CONV2, LINEAR = (
     "features_extractor.cnn.2",
     "features_extractor.linear.0",
 )
+#: The ``network`` kind's convolution (its ``filters``), shared by the actor and the critic.
+FILTERS = "features_extractor.filters"
 #: The kinds of policy (see the module docstring).
 KINDS: tuple[str, ...] = ("sb3", "network")
-#: The keys of a ``network`` spec in a config (evolution's, less its robot, filters, stride).
-NETWORK_KEYS: tuple[str, ...] = ("hidden", "activation", "pool", "symmetry")
+#: The keys of a ``network`` spec in a config (evolution's, less its robot).
+NETWORK_KEYS: tuple[str, ...] = ("hidden", "activation", "pool", "symmetry", "filters", "stride")
 
 
 @dataclass(frozen=True)
@@ -66,8 +84,9 @@ class PolicySpec:
     ``robot`` is a robot string with discrete actions (``DD`` or ``H<v>``);
     ``net_pi`` / ``net_vf`` the hidden widths of the policy and value MLPs;
     ``features_dim`` the CNN's output width (``sb3`` kind, hybrid robots);
-    ``kind``, ``activation``, ``symmetry`` and ``pool`` as the module
-    docstring says (``sb3``: tanh, no symmetry, no pool).
+    ``kind``, ``activation``, ``symmetry``, ``pool``, ``filters`` and
+    ``stride`` as the module docstring says (``sb3``: tanh, no symmetry, no
+    pool, no filters).
     """
 
     robot: str = "DD"
@@ -78,17 +97,21 @@ class PolicySpec:
     activation: str = "tanh"
     symmetry: str = "none"
     pool: int | None = None
+    filters: int = 0
+    stride: int | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise RLConfigError(f"policy kind {self.kind!r} is not one of {', '.join(KINDS)}")
-        if self.kind == "sb3" and (self.activation, self.symmetry, self.pool) != (
-            "tanh",
-            "none",
-            None,
-        ):
+        if self.kind == "sb3" and (
+            self.activation,
+            self.symmetry,
+            self.pool,
+            self.filters,
+        ) != ("tanh", "none", None, 0):
             raise RLConfigError(
-                "an SB3 policy has tanh, no symmetry and no pool (a network spec gives them)"
+                "an SB3 policy has tanh, no symmetry, no pool and no filters (a network spec"
+                " gives them)"
             )
 
     @property
@@ -106,8 +129,39 @@ class PolicySpec:
         return 4 if self.symmetry == "rotations" else 1
 
     @property
+    def grid(self) -> int:
+        """Side of the convolution's feature maps (``filters`` > 0)."""
+        assert self.filters and self.stride is not None
+        return grid_side(int(self.parsed_robot.vision), self.stride)
+
+    def filter_patches(self, observations: Any, xp: Any) -> Any:
+        """The 3x3 patches the filters read, ``(n x copies, 9, grid, grid)``, in ``xp``.
+
+        ``observations``: uint8 images ``(n, 1, v, v)`` (or ``(n, v, v)``),
+        scaled to [0, 1]; with rotations each turned ``d`` quarter-turns
+        clockwise for direction ``d`` (image ``4 k + d``). ``xp`` is the array
+        module (numpy, or ``jax.numpy`` inside the JAX learners) so that both
+        forward passes read the same patches.
+        """
+        v = int(self.parsed_robot.vision)
+        images = xp.asarray(observations).astype(xp.float32).reshape(-1, v, v) / 255.0
+        if self.copies == 4:
+            turned = [xp.rot90(images, -d, axes=(1, 2)) for d in range(4)]
+            images = xp.stack(turned, axis=1).reshape(-1, v, v)
+        stride = int(self.stride or 1)
+        span = stride * (self.grid - 1) + 1
+        sides = range(FILTER_SIDE)
+        shifted = [
+            images[:, a : a + span : stride, b : b + span : stride] for a in sides for b in sides
+        ]
+        return xp.stack(shifted, axis=1)
+
+    @property
     def n_inputs(self) -> int:
-        """Inputs of the MLPs (``network`` kind): the 8 floats or the pooled grid's cells."""
+        """Inputs of the MLPs (``network`` kind): the 8 floats, the pooled grid's cells or
+        the feature maps' positions (``filters x grid^2``, filter-major)."""
+        if self.filters:
+            return self.filters * self.grid * self.grid
         return 8 if self.pool is None else self.pool * self.pool
 
     def turns(self) -> np.ndarray:
@@ -130,6 +184,8 @@ class PolicySpec:
         """The weight shape (torch layout) of every module, in SB3's parameter order."""
         shapes: dict[str, tuple[int, ...]] = {}
         width = self.n_inputs
+        if self.filters:
+            shapes[FILTERS] = (self.filters, 1, FILTER_SIDE, FILTER_SIDE)
         if self.images:
             v = self.observation_shape[-1]
             shapes[CONV1] = (16, 1, 3, 3)
@@ -157,9 +213,9 @@ class PolicySpec:
     # -- the network kind as an evolved agent --------------------------------------------
 
     def actor_modules(self) -> list[str]:
-        """The actor's layers in order: the policy MLP's, then ``action_net``."""
+        """The actor's layers in order: the filters if any, the policy MLP's, ``action_net``."""
         hidden = [f"mlp_extractor.policy_net.{2 * i}" for i in range(len(self.net_pi))]
-        return [*hidden, "action_net"]
+        return [*([FILTERS] if self.filters else []), *hidden, "action_net"]
 
     def architecture(self) -> dict[str, Any]:
         """The actor as an evolved agent file's ``architecture`` (evolution's network spec)."""
@@ -172,21 +228,22 @@ class PolicySpec:
             "activation": self.activation,
             "pool": self.pool,
             "symmetry": self.symmetry,
-            "filters": 0,
-            "stride": None,
+            "filters": self.filters,
+            "stride": self.stride,
         }
 
     def actor_vector(self, params: Mapping[str, Mapping[str, np.ndarray]]) -> np.ndarray:
         """float64: the actor's parameters in an evolved network's layout.
 
-        For each layer, its weights as ``(d_in, d_out)`` row-major (torch's
-        ``(out, in)`` transposed), then its biases.
+        The filters first (each one's 3 x 3 weights row-major, then their
+        biases), then for each layer its weights as ``(d_in, d_out)`` row-major
+        (torch's ``(out, in)`` transposed), then its biases.
         """
         parts = []
         for module in self.actor_modules():
-            layer = params[module]
-            parts.append(np.asarray(layer["weight"], np.float64).T.ravel())
-            parts.append(np.asarray(layer["bias"], np.float64).ravel())
+            weight = np.asarray(params[module]["weight"], np.float64)
+            parts.append((weight if module == FILTERS else weight.T).ravel())
+            parts.append(np.asarray(params[module]["bias"], np.float64).ravel())
         return np.concatenate(parts)
 
     def actor_vector_size(self) -> int:
@@ -205,9 +262,11 @@ class PolicySpec:
             )
         layers, offset = {}, 0
         for module in self.actor_modules():
-            d_out, d_in = shapes[module]
-            weight = vector[offset : offset + d_in * d_out].reshape(d_in, d_out).T
-            offset += d_in * d_out
+            shape = shapes[module]
+            d_out, size = shape[0], int(np.prod(shape))
+            piece = vector[offset : offset + size]
+            weight = piece.reshape(shape) if module == FILTERS else piece.reshape(-1, d_out).T
+            offset += size
             layers[module] = {
                 "weight": weight.astype(np.float32),
                 "bias": vector[offset : offset + d_out].astype(np.float32),
@@ -221,8 +280,10 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
 
     ``network`` takes evolution's keys (:data:`NETWORK_KEYS`): ``hidden`` (the
     actor's and the critic's hidden widths), ``activation``, ``pool`` (image
-    robots; default :data:`~amaze.agents.network_inputs.DEFAULT_POOL`) and
-    ``symmetry``. Unknown keys and bad values raise :class:`RLConfigError`.
+    robots; default :data:`~amaze.agents.network_inputs.DEFAULT_POOL`),
+    ``symmetry``, and for image robots ``filters`` (a convolution instead of
+    the pool) with its ``stride`` (default: the largest of 3, 2, 1 that tiles
+    the retina). Unknown keys and bad values raise :class:`RLConfigError`.
     """
     if not isinstance(network, Mapping):
         raise RLConfigError(f"network {network!r} is not a mapping of {', '.join(NETWORK_KEYS)}")
@@ -231,7 +292,6 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
         named = ", ".join(f"{key!r}{closest(key, NETWORK_KEYS)}" for key in unknown)
         raise RLConfigError(
             f"network key(s) {named}: the RL learners' networks take {', '.join(NETWORK_KEYS)}"
-            " (no convolution: 'filters' and 'stride' are evolution's alone)"
         )
     parsed = as_robot(robot)
     if not parsed.discrete_outputs:
@@ -248,11 +308,22 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
     symmetry = network.get("symmetry", "none")
     if symmetry not in SYMMETRIES:
         raise RLConfigError(f"network symmetry {symmetry!r} is not one of {', '.join(SYMMETRIES)}")
-    pool = network.get("pool")
+    pool, filters, stride = network.get("pool"), network.get("filters", 0), network.get("stride")
+    filters = check_integer(
+        "network filters", filters, minimum=0, maximum=MAX_FILTERS, error=RLConfigError
+    )
     if parsed.discrete_inputs:
-        if pool is not None:
-            raise RLConfigError(f"network pool {pool!r}: robot {parsed} has no image to pool")
+        if pool is not None or filters or stride is not None:
+            named = "pool" if pool is not None else "filters" if filters else "stride"
+            value = {"pool": pool, "filters": filters, "stride": stride}[named]
+            raise RLConfigError(f"network {named} {value!r}: robot {parsed} has no image to read")
+    elif filters:
+        pool, stride = _checked_convolution(pool, filters, stride, int(parsed.vision))
     else:
+        if stride is not None:
+            raise RLConfigError(
+                f"network stride {stride!r} without filters: only a convolution has a stride"
+            )
         vision = int(parsed.vision)
         pool = check_integer(
             "network pool",
@@ -269,4 +340,21 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
         activation=activation,
         symmetry=symmetry,
         pool=pool,
+        filters=filters,
+        stride=stride,
     )
+
+
+def _checked_convolution(pool: Any, filters: int, stride: Any, vision: int) -> tuple[None, int]:
+    """A convolution's (no pool, its stride), checked: it tiles the ``vision``-pixel retina."""
+    if pool is not None:
+        raise RLConfigError(
+            f"network pool {pool!r} with filters {filters}: a network pools its image or"
+            " convolves it, not both"
+        )
+    stride = default_stride(vision) if stride is None else stride
+    stride = check_integer("network stride", stride, minimum=1, maximum=3, error=RLConfigError)
+    problem = stride_problem(stride, vision)
+    if problem:
+        raise RLConfigError(f"network {problem}")
+    return None, stride

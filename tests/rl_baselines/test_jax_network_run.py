@@ -70,6 +70,25 @@ def test_a_direct_run_with_a_network_hands_over_an_evolved_agents_file(
     assert evaluated["normalized_reward"] == pytest.approx(summary["normalized_reward"])
 
 
+def test_a_convolutional_network_trains_an_image_robot_and_evolution_plays_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    network = {"hidden": [8], "filters": 2, "symmetry": "rotations"}
+    options = _config(tmp_path, network=network)
+    assert main([*DIRECT, "--robot", "H7", *options, "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["network"]["filters"] == 2 and summary["network"]["stride"] == 2
+    arrays = read_agent(out / "agent.npz")[0]
+    # 2 filters of 3 x 3 and their biases, then 2 maps of 3 x 3 positions into 8 units, then 1
+    assert arrays["params"].shape == (2 * 9 + 2 + 18 * 8 + 8 + 8 + 1,)
+    capsys.readouterr()
+    assert amaze_main(["evaluate", str(out / "agent.npz"), "suite", "--json"]) == 0
+    evaluated = json.loads(capsys.readouterr().out)
+    assert evaluated["success_rate"] == summary["success_rate"]
+    assert evaluated["normalized_reward"] == pytest.approx(summary["normalized_reward"])
+
+
 @pytest.mark.parametrize("regime", ["edhucat", "coevolution"])
 def test_the_curricula_and_coevolution_train_a_network_and_hand_it_over(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], regime: str
@@ -109,9 +128,9 @@ def test_a_killed_run_with_a_network_resumes_to_the_same_agent_bit_for_bit(
     ("extra", "options", "words"),
     [
         ({}, ["--framework", "sb3"], "has no effect with framework sb3"),
-        ({"network": {"hidden": [16], "pool": 3}}, [], "robot DD has no image to pool"),
+        ({"network": {"hidden": [16], "pool": 3}}, [], "robot DD has no image to read"),
         ({"hyperparameters": {"policy_kwargs": {"net_arch": [8]}}}, [], "give one of them"),
-        ({"network": {"hidden": [16], "filters": 2}}, [], "'filters'"),
+        ({"network": {"hidden": [16], "filters": 2}}, [], "filters 2: robot DD has no image"),
     ],
 )
 def test_what_a_network_spec_cannot_do_is_refused_in_one_line(

@@ -25,6 +25,9 @@ NETWORKS = [
     ("DD", {"hidden": [8, 8], "activation": "relu"}),
     ("H15", {"hidden": [16], "symmetry": "rotations"}),
     ("H15", {"hidden": [], "pool": 3, "activation": "sigmoid"}),
+    ("H15", {"hidden": [16], "filters": 4, "symmetry": "rotations"}),
+    ("H11", {"hidden": [8], "filters": 3, "activation": "relu"}),
+    ("H7", {"hidden": [], "filters": 2, "stride": 1, "symmetry": "rotations"}),
 ]
 
 
@@ -32,7 +35,8 @@ def _observations(robot: str, n: int = 64) -> np.ndarray:
     rng = np.random.default_rng(3)
     if robot == "DD":
         return rng.choice([0.0, 0.25, 0.5, 1.0], size=(n, 8)).astype(np.float32)
-    return rng.integers(0, 256, size=(n, 1, 15, 15)).astype(np.uint8)
+    v = int(robot[1:])
+    return rng.integers(0, 256, size=(n, 1, v, v)).astype(np.uint8)
 
 
 def _params(spec, seed: int = 0) -> dict:
@@ -45,9 +49,10 @@ def _params(spec, seed: int = 0) -> dict:
     }
 
 
-@pytest.mark.parametrize("robot", ["DD", "H15"])
-def test_turning_the_inputs_turns_the_logits_and_keeps_the_value(robot: str) -> None:
-    spec = network_spec(robot, {"hidden": [16], "symmetry": "rotations"})
+@pytest.mark.parametrize(("robot", "filters"), [("DD", 0), ("H15", 0), ("H15", 4), ("H11", 3)])
+def test_turning_the_inputs_turns_the_logits_and_keeps_the_value(robot: str, filters: int) -> None:
+    network = {"hidden": [16], "symmetry": "rotations", **({"filters": filters} if filters else {})}
+    spec = network_spec(robot, network)
     params = _params(spec)
     obs = _observations(robot)
     if robot == "DD":
@@ -97,8 +102,13 @@ def test_jax_numpy_and_an_evolved_network_agree(robot: str, network: dict) -> No
     ("robot", "network", "words"),
     [
         ("DD", {"hiden": [16]}, "'hiden' (did you mean 'hidden'?)"),
-        ("DD", {"filters": 4}, "'filters'"),
-        ("DD", {"pool": 3}, "robot DD has no image to pool"),
+        ("DD", {"filters": 4}, "network filters 4: robot DD has no image to read"),
+        ("H15", {"filters": 4, "pool": 3}, "pools its image or convolves it, not both"),
+        ("H13", {"filters": 4, "stride": 3}, "stride 3 does not tile a retina of 13 pixels"),
+        ("H15", {"stride": 3}, "stride 3 without filters"),
+        ("H15", {"filters": 65}, "network filters"),
+        ("H15", {"filtres": 4}, "'filtres' (did you mean 'filters'?)"),
+        ("DD", {"pool": 3}, "network pool 3: robot DD has no image to read"),
         ("H15", {"pool": 16}, "network pool"),
         ("DD", {"symmetry": "mirror"}, "network symmetry 'mirror'"),
         ("DD", {"activation": "gelu"}, "network activation 'gelu'"),

@@ -14,7 +14,8 @@ paper's training maze (its 4 rotations, one environment each at least):
   and CleanRL's JAX PPO kind of setting), SB3's MLP;
 * ``throughput, network``: both.
 
-Usage: ``python benchmarks/bench_rl_network.py [--robot DD] [--repeats 3] [--json]``.
+Usage: ``python benchmarks/bench_rl_network.py [--robot DD] [--repeats 3] [--json]``;
+``--robot H15`` reads the pooled retina, ``--robot H15 --filters 4`` convolves it.
 XLA uses every core it is given (``--threads 1`` pins one core); say how loaded
 the machine was beside the figures.
 """
@@ -60,6 +61,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1 << 19, help="env steps per repeat")
     parser.add_argument("--hidden", type=int, nargs="*", default=[16])
     parser.add_argument("--symmetry", default="rotations", choices=("none", "rotations"))
+    parser.add_argument(
+        "--filters", type=int, default=0, help="image robots: 3x3 filters instead of the pool"
+    )
     parser.add_argument("--envs", type=int, default=64)
     parser.add_argument("--n-steps", type=int, default=64)
     parser.add_argument("--batch-size", type=int, default=1024)
@@ -72,6 +76,8 @@ def main() -> None:
             os.sched_setaffinity(0, {0})
         os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {ONE_CORE_XLA}".strip()
     network = {"hidden": args.hidden, "symmetry": args.symmetry}
+    if args.filters:
+        network["filters"] = args.filters
     throughput = {
         "n_steps": args.n_steps,
         "batch_size": args.batch_size,

@@ -1,16 +1,22 @@
 """Can an agent read signs of a shape it never saw? The standard suite with each sign shape.
 
     python benchmarks/bench_sign_transfer.py AGENT.npz [--shapes arrow star point ...]
+        [--training-styles DIR]
 
 plays an agent of a hybrid robot (``H15``...), trained on mazes whose signs are
 arrows, on the standard suite (18 mazes x 4 rotations) with its signs redrawn
 in each shape (same kinds, lightnesses and directions: ``C1`` becomes
 ``Cstar-1``, ``L.25`` becomes ``Lstar-.25``...), and runs the input-recognition
 test with those signs (the paper's training maze's, as the protocol does).
-Besides the built-in shapes, it draws one of its own (``chevron``: an open
-">" of two strokes, a PNG registered with :func:`amaze.register_custom_signs`).
-It prints one row per shape: suite success, mean R̄ and input recognition with its
-four classes.
+Besides the built-in shapes, it draws the held-out arrow styles of
+:mod:`amaze.maze.arrow_styles` (``chevron``: an open ">" of two strokes;
+``harpoon``: a shaft with one barb; ``outline``: the hollow contour of a block
+arrow), PNG images registered with :func:`amaze.register_custom_signs`.
+``--training-styles DIR`` also registers a folder of training styles (``amaze
+draw-signs OUT`` writes ``OUT/training``) and adds its first shapes to the default list.
+It prints one row per shape: whether the shape can carry a direction at all
+(:func:`~amaze.maze.arrow_styles.directional`), suite success, mean R̄ and input
+recognition with its four classes; then the shapes that cannot carry a direction.
 """
 
 from __future__ import annotations
@@ -20,28 +26,25 @@ import sys
 import tempfile
 from pathlib import Path
 
-from PIL import Image, ImageDraw
-
+from amaze.errors import AmazeError
 from amaze.evaluation.inputs import enumerate_inputs, evaluate_inputs
 from amaze.evaluation.protocol import INPUT_SIGNS_MAZE, Evaluator
 from amaze.evaluation.suite import standard_suite
+from amaze.maze.arrow_styles import HELD_OUT_STYLES, IMAGE_SIZE, directional
 from amaze.maze.signs import register_custom_signs
 from amaze.maze.spec import MazeSpec
 from evolution.agent_file import AgentFileError, load_agent
 
-SHAPES = ("arrow", "rarrow", "star", "point", "warning", "chevron")
+SHAPES = ("arrow", "rarrow", "star", "point", "warning", *HELD_OUT_STYLES)
+#: How many shapes of a ``--training-styles`` folder join the default list.
+TRAINING_SHAPES_LISTED = 3
 
 
-def draw_chevron(folder: Path, size: int = 64) -> Path:
-    """A custom sign: an open chevron pointing east, white on transparent, as a PNG file."""
-    image = Image.new("LA", (size, size), (0, 0))
-    draw = ImageDraw.Draw(image)
-    width = max(1, size // 8)
-    draw.line([(size * 0.25, size * 0.1), (size * 0.8, size * 0.5)], fill=(255, 255), width=width)
-    draw.line([(size * 0.8, size * 0.5), (size * 0.25, size * 0.9)], fill=(255, 255), width=width)
-    path = folder / "chevron.png"
-    image.save(path)
-    return path
+def draw_held_out(folder: Path) -> list[str]:
+    """Write the held-out arrow styles as PNG files in ``folder`` and register them."""
+    for name, draw in HELD_OUT_STYLES.items():
+        draw(IMAGE_SIZE).save(folder / f"{name}.png")
+    return register_custom_signs(folder)
 
 
 def reshaped(maze: str, shape: str) -> str:
@@ -52,7 +55,13 @@ def reshaped(maze: str, shape: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("agent", type=Path, help="an agent file of a hybrid robot (.npz)")
-    parser.add_argument("--shapes", nargs="+", default=list(SHAPES), metavar="SHAPE")
+    parser.add_argument("--shapes", nargs="+", metavar="SHAPE", help=f"({' '.join(SHAPES)})")
+    parser.add_argument(
+        "--training-styles",
+        type=Path,
+        metavar="DIR",
+        help="also register this folder of sign PNGs (amaze draw-signs OUT writes OUT/training)",
+    )
     args = parser.parse_args(argv)
     try:
         agent = load_agent(args.agent)
@@ -64,12 +73,25 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: the agent's robot {robot} sees no images: give an H robot", file=sys.stderr)
         return 2
     with tempfile.TemporaryDirectory() as folder:
-        register_custom_signs(draw_chevron(Path(folder)))
+        draw_held_out(Path(folder))
+        shapes = list(SHAPES) if args.shapes is None else args.shapes
+        try:
+            if args.training_styles is not None:
+                trained = register_custom_signs(args.training_styles)
+                listed = ", ".join(trained[:TRAINING_SHAPES_LISTED])
+                more = len(trained) - TRAINING_SHAPES_LISTED
+                print(f"training styles of {args.training_styles}: {len(trained)} shapes ({listed}"
+                      + (f" and {more} more)" if more > 0 else ")"))  # fmt: skip
+                if args.shapes is None:
+                    shapes[1:1] = trained[:TRAINING_SHAPES_LISTED]
+            directions = {shape: directional(shape) for shape in shapes}
+        except AmazeError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
         suite = standard_suite().maze_strings(rotations=True)
         print(f"agent {args.agent} ({robot}), standard suite (18 mazes x 4 rotations) per shape")
-        header = "shape      success   mean R̄   inputs  (clue  trap  lure  empty)"
-        print(header)
-        for shape in args.shapes:
+        print("shape      directional  success   mean R̄   inputs  (clue  trap  lure  empty)")
+        for shape in shapes:
             mazes = [reshaped(maze, shape) for maze in suite]
             report = Evaluator(robot, mazes, inputs=False).evaluate(agent)
             spec = MazeSpec.from_string(reshaped(INPUT_SIGNS_MAZE, shape))
@@ -79,8 +101,15 @@ def main(argv: list[str] | None = None) -> int:
             classes = "  ".join(f"{rates.get(name, float('nan')):.2f}" for name in
                                 ("clue", "trap", "lure", "empty"))  # fmt: skip
             print(
-                f"{shape:<10} {report.success_rate:7.3f}  {report.normalized_reward:+7.3f}"
+                f"{shape:<10} {'yes' if directions[shape] else 'no':<11}"
+                f" {report.success_rate:7.3f}  {report.normalized_reward:+7.3f}"
                 f"  {recognition.overall:6.3f}  ({classes})"
+            )
+        blind = [shape for shape in shapes if not directions[shape]]
+        if blind:
+            print(
+                f"cannot carry a direction (its four orientations look alike; leave it out of"
+                f" any training target): {', '.join(blind)}"
             )
     return 0
 

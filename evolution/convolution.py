@@ -54,6 +54,7 @@ __all__ = [
     "turned_filters",
 ]
 
+
 def check_stride(stride: object, vision: int) -> int:
     """``stride`` checked: 1 to 3 (no pixel skipped), tiling the ``vision``-pixel retina."""
     stride = check_integer("stride", stride, minimum=1, maximum=3, error=EvolutionConfigError)

@@ -5,8 +5,9 @@ Sub-commands: ``inspect``, ``render``, ``stats`` (mazes from their strings;
 one controller, one episode, optional trajectory PNG and GIF), ``inputs``
 (the input-recognition test), ``suite`` (the standard evaluation suite, or
 the paper's with ``--paper``: list, render, evaluate a controller),
-``evaluate`` (any agent on any mazes, by the evaluation protocol) and
-``interpolate`` (the stages of an interpolation curriculum between two mazes).
+``evaluate`` (any agent on any mazes, by the evaluation protocol),
+``interpolate`` (the stages of an interpolation curriculum between two mazes)
+and ``draw-signs`` (arrow images to train sighted agents on, and held-out ones).
 User mistakes print one line ``error: ...`` on standard error and exit with
 status 2; there is no traceback for bad input.
 """
@@ -426,6 +427,25 @@ def _cmd_interpolate(args: argparse.Namespace) -> None:
         print(f"stages picture -> {render_path}", file=sys.stderr if args.json else sys.stdout)
 
 
+def _cmd_draw_signs(args: argparse.Namespace) -> None:
+    from amaze.maze.arrow_styles import HELD_OUT_FOLDER, TRAINING_FOLDER, write_sign_styles
+
+    groups = write_sign_styles(args.out, args.training, args.seed)
+    training, held_out = groups[TRAINING_FOLDER], groups[HELD_OUT_FOLDER]
+    folder = Path(args.out)
+    print(f"{len(training)} training styles (seed {args.seed}) -> {folder / TRAINING_FOLDER}:")
+    print(f"  {' '.join(training)}")
+    print(f"{len(held_out)} held-out styles (never train on them) -> {folder / HELD_OUT_FOLDER}:")
+    print(f"  {' '.join(held_out)}")
+    config = json.dumps({"coevolution": {"shapes": ["arrow", *training]}})
+    print(
+        f"use them: amaze --signs {folder / TRAINING_FOLDER} ... (maze strings such as"
+        f" M4_10x10_C{training[0]}-1), or AMAZE_CUSTOM_SIGNS={folder / TRAINING_FOLDER}"
+        " in the environment of any command"
+    )
+    print(f"train on them (amaze-evolve --regime coevolution --config FILE.json): {config}")
+
+
 def _deadline_factor(text: str) -> float:
     """The value of ``--deadline-factor``: a finite number in [1, 1000].
 
@@ -618,6 +638,26 @@ def _add_interpolate(commands: argparse._SubParsersAction) -> None:
     interpolate.set_defaults(run=_cmd_interpolate)
 
 
+def _add_draw_signs(commands: argparse._SubParsersAction) -> None:
+    """``amaze draw-signs``: write arrow sign images, training styles and held-out ones."""
+    draw = commands.add_parser(
+        "draw-signs",
+        help="write arrow sign images: varied training styles and held-out styles (PNG)",
+    )
+    draw.add_argument(
+        "out", metavar="OUT", help="folder to write OUT/training/ and OUT/held-out/ in"
+    )
+    draw.add_argument(
+        "--training",
+        type=int,
+        default=16,
+        metavar="N",
+        help="number of training styles, 1 to 256 (16)",
+    )
+    draw.add_argument("--seed", type=int, default=0, help="seed of the training styles (0)")
+    draw.set_defaults(run=_cmd_draw_signs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``amaze`` and its sub-commands.
 
@@ -647,6 +687,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_suite(commands)
     _add_evaluate(commands)
     _add_interpolate(commands)
+    _add_draw_signs(commands)
     return parser
 
 

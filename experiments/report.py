@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from amaze.runs.folder import write_bytes
+from experiments.ceiling import CEILING, ceiling_table
 from experiments.comparisons import StudyComparison
 from experiments.curves import write_comparison_figures
 from experiments.evaluations import ComparisonData, comparison_data
@@ -319,6 +320,13 @@ def _one_comparison(
     table = improvement_table(data, f.flagged)
     if table:
         parts += ["Probability of improvement (final agents, evaluation set):", "", table, ""]
+    parts += [
+        f"How soon the runs reach the ceiling (success >= {CEILING:g} on the evaluation set,"
+        " first anytime point where the agent does; medians over the runs that get there):",
+        "",
+        ceiling_table(data),
+        "",
+    ]
     return parts + _set_notes(data)
 
 

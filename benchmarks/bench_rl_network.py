@@ -70,6 +70,12 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=4)
     parser.add_argument("--threads", type=int, choices=(0, 1), default=0, help="1: one core")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.add_argument(
+        "--only-throughput",
+        action="store_true",
+        help="skip the two SB3-defaults settings (an image robot's CNN at 4 environments takes"
+        " minutes a repeat)",
+    )
     args = parser.parse_args()
     if args.threads == 1:
         if hasattr(os, "sched_setaffinity"):
@@ -89,6 +95,8 @@ def main() -> None:
         ("throughput", throughput, args.envs, None),
         ("throughput, network", throughput, args.envs, network),
     ]
+    if args.only_throughput:
+        settings = settings[2:]
     rows = []
     for name, hyperparameters, n_envs, net in settings:
         # SB3's defaults roll out 2,048 x 4 steps: a quarter of the steps keeps them short

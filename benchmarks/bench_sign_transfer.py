@@ -30,7 +30,12 @@ from amaze.errors import AmazeError
 from amaze.evaluation.inputs import enumerate_inputs, evaluate_inputs
 from amaze.evaluation.protocol import INPUT_SIGNS_MAZE, Evaluator
 from amaze.evaluation.suite import standard_suite
-from amaze.maze.arrow_styles import HELD_OUT_STYLES, IMAGE_SIZE, directional
+from amaze.maze.arrow_styles import (
+    HELD_OUT_FOLDER,
+    HELD_OUT_STYLES,
+    directional,
+    write_sign_styles,
+)
 from amaze.maze.signs import register_custom_signs
 from amaze.maze.spec import MazeSpec
 from evolution.agent_file import AgentFileError, load_agent
@@ -41,10 +46,10 @@ TRAINING_SHAPES_LISTED = 3
 
 
 def draw_held_out(folder: Path) -> list[str]:
-    """Write the held-out arrow styles as PNG files in ``folder`` and register them."""
-    for name, draw in HELD_OUT_STYLES.items():
-        draw(IMAGE_SIZE).save(folder / f"{name}.png")
-    return register_custom_signs(folder)
+    """Write the held-out arrow styles in ``folder`` (:func:`write_sign_styles`'s held-out
+    group; its one training style is not registered) and register them."""
+    write_sign_styles(folder, 1, 0)
+    return register_custom_signs(folder / HELD_OUT_FOLDER)
 
 
 def reshaped(maze: str, shape: str) -> str:

@@ -57,7 +57,7 @@ TRAINERS: dict[str, dict[str, Any]] = {
     "edhucat-follow-edens": {"regime": "edhucat", "curator": "follow", "advisor": "edens"},
     "edens": {"regime": "edens"},
     "coevolution": {"regime": "coevolution"},
-    # evolution only: EDEnS choosing how the co-evolved maze population evolves
+    # EDEnS choosing how the co-evolved maze population evolves (RL: the jax framework only)
     "edens-populations": {"regime": "edens-populations"},
     # the direct regime on fixed family mazes
     "domain-randomisation": {

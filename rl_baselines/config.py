@@ -123,7 +123,8 @@ class TrainConfig(RegimeConfig):
     )
     network: dict[str, Any] | None = option(
         None,
-        "framework jax: evolution's network spec (hidden, activation, pool, symmetry) instead"
+        "framework jax: evolution's network spec (hidden, activation, pool, symmetry, filters,"
+        " stride) instead"
         " of SB3's policy; the agent is saved as an evolved agent's file (agent.npz)",
         command_line=False,
     )

@@ -443,7 +443,10 @@ def _cmd_draw_signs(args: argparse.Namespace) -> None:
         f" M4_10x10_C{training[0]}-1), or AMAZE_CUSTOM_SIGNS={folder / TRAINING_FOLDER}"
         " in the environment of any command"
     )
-    print(f"train on them (amaze-evolve --regime coevolution --config FILE.json): {config}")
+    print(
+        "train on them (amaze-evolve, or amaze-train --framework jax, --regime coevolution"
+        f" --config FILE.json): {config}"
+    )
 
 
 def _deadline_factor(text: str) -> float:

@@ -20,11 +20,13 @@ only; ``hidden = ()`` is a linear policy. Outputs: 4 logits for discrete
 actions (the action is the first maximal one, in E, N, W, S order); 2 for
 continuous actions, squashed by tanh into accelerations in [-1, 1].
 
-**Symmetry.** With ``symmetry = "rotations"`` (discrete actions only) the logit
-of direction ``d`` is the network's single output on the inputs turned a
-quarter-turn ``d`` times clockwise (the 8 DD inputs shifted cyclically, the
-pooled grid turned with ``np.rot90``): one set of weights for the four
-directions, equivariant by construction (``docs/trainers/evolution.md``).
+**Symmetry.** With ``symmetry = "rotations"`` the score of direction ``d`` is
+the network's single output on the inputs turned a quarter-turn ``d`` times
+clockwise (the 8 DD inputs shifted cyclically, the pooled grid turned with
+``np.rot90``): one set of weights for the four directions, equivariant by
+construction (``docs/trainers/evolution.md``). A discrete action is the best
+score; an acceleration is ``(tanh(s_E - s_W), tanh(s_N - s_S))``
+(:func:`turned_accelerations`).
 
 **Parameter layout.** For each layer in order, its weights ``(d_in, d_out)``
 row-major, then its biases ``(d_out,)`` (:meth:`NetworkSpec.unflatten`).
@@ -37,6 +39,7 @@ DD                 8        36         212          1 476
 DD, rotations      8        9          161          1 377
 CD15/CD11          25       104        484          2 020
 CD15, rotations    25       26         433          1 921
+CC15, rotations    25       26         433          1 921
 CC15/CC11          25       52         450          1 954
 =================  =======  =========  ===========  ================
 
@@ -90,6 +93,7 @@ __all__ = [
     "NetworkSpec",
     "check_symmetry",
     "rotation_index",
+    "turned_accelerations",
 ]
 
 #: Inputs of discrete-input robots, actions of discrete-output robots, accelerations.
@@ -122,7 +126,7 @@ class NetworkSpec:
     ``pool`` is the side of the pooled image grid, ``None`` for discrete-input
     robots (image robots default to :data:`DEFAULT_POOL`); ``symmetry`` is
     one of :data:`SYMMETRIES` (``"rotations"``: one network scores each
-    direction, for discrete actions). ``filters`` > 0 (image robots) reads the
+    direction). ``filters`` > 0 (image robots) reads the
     image through that many evolved 3x3 filters slid with ``stride`` instead
     of pooling it (:mod:`evolution.convolution`; ``pool`` is then ``None``).
     """
@@ -192,7 +196,7 @@ class NetworkSpec:
                 "pool", pool, minimum=1, maximum=int(robot.vision), error=EvolutionConfigError
             )
             object.__setattr__(self, "pool", pool)
-        check_symmetry(self.symmetry, robot)
+        check_symmetry(self.symmetry)
 
     # -- description ----------------------------------------------------------
 
@@ -387,20 +391,40 @@ class NetworkSpec:
         return NetworkPopulation(self, params, parallel=parallel)
 
 
-def check_symmetry(symmetry: object, robot: Robot | None = None, name: str = "symmetry") -> str:
-    """``symmetry`` if it is one of :data:`SYMMETRIES`, fit for ``robot`` when one is given.
+def check_symmetry(symmetry: object, name: str = "symmetry") -> str:
+    """``symmetry`` if it is one of :data:`SYMMETRIES`.
 
-    ``"rotations"`` needs discrete actions. ``name`` names the value in the
+    Every robot takes both: with ``"rotations"`` a discrete action is the best
+    of the four directions' scores, an acceleration their difference along
+    each axis (:func:`turned_accelerations`). ``name`` names the value in the
     error (:class:`~evolution.EvolutionConfigError`).
     """
     if symmetry not in SYMMETRIES:
         raise EvolutionConfigError(f"{name} {symmetry!r} is not one of {', '.join(SYMMETRIES)}")
-    if symmetry == "rotations" and robot is not None and not robot.discrete_outputs:
-        raise EvolutionConfigError(
-            f"symmetry 'rotations' needs discrete actions: robot {robot} accelerates"
-            " (give symmetry 'none', or a DD or H robot)"
-        )
     return str(symmetry)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _turned_accelerations(scores, out):
+    for k in range(scores.shape[0]):
+        out[k, 0] = tanh32(np.float32(scores[k, 0] - scores[k, 2]))
+        out[k, 1] = tanh32(np.float32(scores[k, 1] - scores[k, 3]))
+
+
+def turned_accelerations(scores: np.ndarray) -> np.ndarray:
+    """Accelerations ``(n, 2)`` from the direction scores ``(n, 4)`` (E, N, W, S) of a network
+    shared by the four directions: ``(tanh(s_E - s_W), tanh(s_N - s_S))``.
+
+    The score of direction ``d`` is the network's output on the image turned
+    so that ``d`` lies east, so turning the maze a quarter-turn turns the
+    acceleration with it: the continuous form of the discrete argmax.
+    Computed in float32 with :func:`~evolution.activations.tanh32`, one agent
+    at a time, so an agent accelerates the same in any batch.
+    """
+    scores = np.ascontiguousarray(scores)
+    out = np.empty((scores.shape[0], N_CONTINUOUS_OUTPUTS), dtype=np.float64)
+    _turned_accelerations(scores, out)
+    return out
 
 
 # -----------------------------------------------------------------------------
@@ -949,9 +973,11 @@ class NetworkPopulation:
         )
         if all_rows:
             self._n_agents, self._active, self._dirty = saved
-        if copies > 1:  # the first maximal logit (E, N, W, S order); 0 for retired agents
-            logits = values.reshape(n, copies)
-            return logits, np.argmax(logits, axis=1).astype(np.int64)
+        if copies > 1:  # one score per direction (E, N, W, S order); 0 for retired agents
+            scores = values.reshape(n, copies)
+            if self._mode == _MODE_DISCRETE:  # the first maximal score
+                return scores, np.argmax(scores, axis=1).astype(np.int64)
+            return scores, turned_accelerations(scores)
         return values, (discrete if mode == _MODE_DISCRETE else continuous)
 
     def _threaded(self) -> bool:

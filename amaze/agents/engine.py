@@ -117,6 +117,7 @@ _DAMPING = 1 - INERTIAL_LOSS * 0.1  # continuous dt = 0.1, as in the reference
 _ACC_SCALE = ACCELERATION_SCALE
 _DT_CONTINUOUS = 0.1
 _MIN_SPEED = min(0.01, ACCELERATION_SCALE / 2)
+_SQRT2 = np.sqrt(2.0)  # the corner-to-centre offset (±0.5, ±0.5) times it is a unit vector
 
 #: The engine tries its parallel kernels from this much work per step (agents
 #: times the relative cost of an agent-step, ``_WORK_PER_AGENT``): some 30 µs of
@@ -456,8 +457,12 @@ def _continuous_move(k, ax, ay, ist, fst, mint, walls):
         d = np.sqrt(dvx**2 + dvy**2)
         pen = r - d
         if d < r:
-            dvx = dvx / d
-            dvy = dvy / d
+            if d > 0.0:
+                dvx = dvx / d
+                dvy = dvy / d
+            else:  # exactly on the wall end: away from it towards the cell's centre
+                dvx = (cx - i - 0.5) * _SQRT2
+                dvy = (cy - j - 0.5) * _SQRT2
             x_ -= dvx * pen
             y_ -= dvy * pen
 

@@ -25,6 +25,7 @@ deadline, statistics), with these fixes of its bugs:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -264,8 +265,13 @@ class Simulation:
             dx, dy = cx - x, cy - y
             distance = (dx * dx + dy * dy) ** 0.5
             if distance < r:
-                new_x -= dx / distance * (r - distance)
-                new_y -= dy / distance * (r - distance)
+                if distance > 0:
+                    ux, uy = dx / distance, dy / distance
+                else:  # exactly on the wall end (the reference divides by zero):
+                    # pushed away from it towards the cell's centre
+                    ux, uy = (cx - i - 0.5) * math.sqrt(2), (cy - j - 0.5) * math.sqrt(2)
+                new_x -= ux * (r - distance)
+                new_y -= uy * (r - distance)
         self.position = (new_x, new_y)
         return (new_x != x or new_y != y), (ax, ay)
 

@@ -44,7 +44,7 @@ from amaze.agents.engine import threads_pay_off
 from amaze.agents.robot import Robot, as_robot
 from amaze.validation import check_integer
 from evolution import EvolutionConfigError
-from evolution.networks import check_symmetry, rotation_index
+from evolution.networks import check_symmetry, rotation_index, turned_accelerations
 
 __all__ = [
     "ACTIVATIONS",
@@ -88,12 +88,12 @@ def robot_io(robot: Robot | str, symmetry: str = "none") -> tuple[int, int]:
     8 inputs for discrete-input robots, ``v * v`` pixels for image robots;
     4 outputs (argmax action) for discrete outputs, 2 (accelerations) for
     continuous ones; 1 with ``symmetry`` ``"rotations"`` (the score of the
-    direction turned east; discrete actions only, others raise).
+    direction turned east).
     """
     robot = as_robot(robot)
     n_inputs = N_DISCRETE_INPUTS if robot.discrete_inputs else int(robot.vision) ** 2
     n_outputs = N_DISCRETE_OUTPUTS if robot.discrete_outputs else N_CONTINUOUS_OUTPUTS
-    if check_symmetry(symmetry, robot) == "rotations":
+    if check_symmetry(symmetry) == "rotations":
         n_outputs = 1
     return n_inputs, n_outputs
 
@@ -907,10 +907,13 @@ class GenomePopulation:
         return out if self._turns is None else out.reshape(n // 4, 4)
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
-        """Actions: int64 argmax (E, N, W, S) or float64 accelerations ``(n, 2)``."""
+        """Actions: int64 argmax (E, N, W, S) or float64 accelerations ``(n, 2)``
+        (with rotations, :func:`~evolution.networks.turned_accelerations` of the scores)."""
         out = self.outputs(observations)
         if self.robot.discrete_outputs:
             return np.argmax(out, axis=1).astype(np.int64)
+        if self._turns is not None:  # the four directions' scores
+            return turned_accelerations(out)
         return out
 
 

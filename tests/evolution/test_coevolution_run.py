@@ -172,11 +172,13 @@ def test_neat_with_one_genome_for_the_four_directions(
     architecture = read_agent(out / "agent.npz")[1]["architecture"]
     assert architecture["symmetry"] == "rotations" and architecture["n_outputs"] == 1
     load_agent(out / "agent.npz")  # amaze run and evaluate can play it
-    capsys.readouterr()
-    refused = _write_config(tmp_path, algo="neat", robot="CC5", algorithm=options)
-    assert main(["--config", str(refused), "--out", str(tmp_path / "cc"), "--no-progress"]) == 2
-    assert "needs discrete actions" in capsys.readouterr().err
-    assert not (tmp_path / "cc").exists()
+    # a continuous robot: one genome scores the directions, the accelerations turn with them
+    continuous = _write_config(tmp_path, algo="neat", robot="CC5", algorithm=options)
+    assert main(["--config", str(continuous), "--out", str(tmp_path / "cc"), "--no-progress"]) == 0
+    architecture = read_agent(tmp_path / "cc" / "agent.npz")[1]["architecture"]
+    assert architecture["symmetry"] == "rotations" and architecture["n_outputs"] == 1
+    images = np.zeros((3, 1, 5, 5), np.uint8)
+    assert load_agent(tmp_path / "cc" / "agent.npz")(images).shape == (3, 2)
 
 
 def test_coevolution_fills_the_cmaes_options_it_is_not_given() -> None:

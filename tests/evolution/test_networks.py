@@ -387,6 +387,7 @@ def test_rotations_retire_agents_and_keep_individuals_alike():
         (NetworkSpec("DD", (16,), symmetry="rotations"), 161),
         (NetworkSpec("H15", symmetry="rotations"), 26),
         (NetworkSpec("H15", (16,), symmetry="rotations"), 433),
+        (NetworkSpec("CC15", (16,), symmetry="rotations"), 433),
     ],
 )
 def test_rotations_parameter_counts(spec, n_params):
@@ -398,6 +399,33 @@ def test_rotations_parameter_counts(spec, n_params):
 def test_symmetry_is_checked_and_older_specs_have_none():
     with pytest.raises(EvolutionConfigError, match="'mirror' is not one of none, rotations"):
         NetworkSpec("DD", symmetry="mirror")
-    with pytest.raises(EvolutionConfigError, match="CC15 accelerates"):
-        NetworkSpec("CC15", symmetry="rotations")
     assert NetworkSpec.from_dict({"robot": "DD", "hidden": [4]}).symmetry == "none"
+
+
+@pytest.mark.parametrize("robot", ["CC15", "CC7"])
+def test_rotations_turn_the_accelerations_with_the_maze(robot):
+    # continuous robots: the four directions' scores give (tanh(s_E - s_W), tanh(s_N - s_S));
+    # turning the image a quarter-turn counterclockwise turns (ax, ay) into (-ay, ax)
+    rng = np.random.default_rng(5)
+    spec = NetworkSpec(robot, (8,), symmetry="rotations")
+    assert spec.n_params == NetworkSpec("CD" + robot[2:], (8,), symmetry="rotations").n_params
+    params = spec.initial_params(rng, 3) * 2
+    population = spec.population(params)
+    observations = random_observations(robot, 3 * 40, rng)
+    accelerations = population(observations)
+    assert accelerations.shape == (120, 2) and accelerations.dtype == np.float64
+    scores = population.forward(observations).astype(np.float64)
+    np.testing.assert_allclose(
+        accelerations,
+        np.tanh(np.stack([scores[:, 0] - scores[:, 2], scores[:, 1] - scores[:, 3]], 1)),
+        atol=1e-6,
+    )
+    assert np.abs(accelerations).max() > 0.3  # not all near zero
+    ax, ay = accelerations.T
+    for turns, expected in [(1, (-ay, ax)), (2, (-ax, -ay)), (3, (ay, -ax))]:
+        moved = population(turned(robot, observations, -turns))
+        np.testing.assert_array_equal(moved, np.stack(expected, axis=1))
+    for p in range(3):  # an individual alone accelerates as in the population, bit for bit
+        rows = slice(40 * p, 40 * p + 40)
+        alone = population.individual(p)(observations[rows])
+        np.testing.assert_array_equal(alone, accelerations[rows])

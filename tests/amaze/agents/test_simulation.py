@@ -166,3 +166,30 @@ def test_robot_strings(text, canonical):
 def test_bad_robot_strings(text):
     with pytest.raises(RobotStringError):
         Robot.from_string(text)
+
+
+@pytest.mark.parametrize("robot", ["CC7", "CC15"])
+def test_a_robot_exactly_on_a_wall_end_is_pushed_towards_its_cell(robot):
+    """The reference divides by the distance to the wall end, zero on the end itself.
+
+    Evolution's saturated accelerations put robots exactly on integer points;
+    a CC15 co-evolution run ended with ``ZeroDivisionError`` in the engine.
+    Both the simulation and the engine push the robot a radius from the end,
+    towards its cell's centre, and agree to the last bit.
+    """
+    from amaze.agents.engine import BatchEngine
+    from amaze.agents.robot import RADIUS
+
+    maze = "M4_5x5_U"
+    sim = Simulation(maze, robot)
+    walls = sim.maze.walls
+    assert walls[0, 1, 3] or walls[1, 0, 2]  # the end of a wall at the point (1, 1)
+    sim.position, sim.velocity = (1.0, 1.0), (0.0, 0.0)
+    sim.step((0.0, 0.0))
+    x, y = sim.position
+    assert np.isfinite([x, y]).all() and x > 1.0 and y > 1.0  # into cell (1, 1)
+    assert np.hypot(x - 1.0, y - 1.0) >= RADIUS
+    engine = BatchEngine([maze], robot, 1)
+    engine._fst[0, 0], engine._fst[0, 1] = 1.0, 1.0
+    engine.step(np.zeros((1, 2)))
+    assert engine.positions[0].tolist() == [x, y]

@@ -198,5 +198,20 @@ def test_a_symmetric_agent_file_round_trips_and_pickles() -> None:
         policy_from_arrays(arrays, {**architecture, "symmetry": "sideways"}, "DD")
     with pytest.raises(EvolutionConfigError, match="1 outputs"):
         policy_from_arrays(arrays, {k: v for k, v in architecture.items() if k != "symmetry"}, "DD")
-    with pytest.raises(EvolutionConfigError, match="needs discrete actions"):
-        GenomePopulation.from_genomes(genomes, "CC5", symmetry="rotations")
+
+
+def test_a_symmetric_genome_accelerates_along_the_difference_of_its_scores() -> None:
+    genomes = grown_genomes("CC5", count=2, steps=30, seed=4, symmetry="rotations")
+    population = GenomePopulation.from_genomes(genomes, "CC5", symmetry="rotations")
+    obs = np.random.default_rng(5).integers(0, 256, (40, 1, 5, 5)).astype(np.uint8)
+    scores = population.outputs(obs)
+    assert scores.shape == (40, 4)
+    accelerations = population(obs)
+    np.testing.assert_allclose(
+        accelerations,
+        np.tanh(np.stack([scores[:, 0] - scores[:, 2], scores[:, 1] - scores[:, 3]], 1)),
+        atol=1e-6,
+    )
+    ax, ay = accelerations.T  # the image turned a quarter-turn counterclockwise: (-ay, ax)
+    turned = np.ascontiguousarray(np.rot90(obs, 1, axes=(2, 3)))
+    np.testing.assert_array_equal(population(turned), np.stack([-ay, ax], axis=1))

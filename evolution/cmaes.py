@@ -29,6 +29,7 @@ fresh random mean with twice the population. Once no restart is left,
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
@@ -37,6 +38,7 @@ from typing import Any, ClassVar
 
 import cma
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from amaze.agents.robot import Robot, as_robot
 from amaze.runs.config import config_from_dict
@@ -109,6 +111,17 @@ def _json_value(name: str, value: Any) -> Any:
     raise EvolutionConfigError(
         f"CMA-ES config '{name}' must hold finite numbers or booleans, got {value!r}"
     )
+
+
+@functools.cache
+def _threadpools() -> ThreadpoolController:
+    """The process's native thread pools (found once: a look-up reads every loaded library)."""
+    return ThreadpoolController()
+
+
+def one_blas_thread() -> contextlib.AbstractContextManager[Any]:
+    """A context in which BLAS (OpenBLAS, MKL...) runs on one thread, as it was after."""
+    return _threadpools().limit(limits=1, user_api="blas")
 
 
 @dataclass
@@ -344,12 +357,16 @@ class CMAESAlgorithm:
         """Run with the algorithm's state in ``np.random``, leaving the caller's intact.
 
         cma's warnings (flat fitness and the like) are silenced: the run loop
-        reports the statistics itself.
+        reports the statistics itself. cma's linear algebra runs on one BLAS
+        thread (:func:`one_blas_thread`): OpenBLAS sums a product in another
+        order on more threads, so the candidates would depend on the
+        machine's cores and on ``OMP_NUM_THREADS`` (a study's workers set it
+        to 1), not on the config and seed alone.
         """
         outer = np.random.get_state()  # noqa: NPY002
         np.random.set_state(self._np_state)  # noqa: NPY002
         try:
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(), one_blas_thread():
                 warnings.simplefilter("ignore")
                 yield
         finally:

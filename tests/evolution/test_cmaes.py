@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from evolution import EvolutionConfigError
@@ -233,6 +234,20 @@ def test_same_seed_same_run_and_caller_rng_untouched() -> None:
     assert_same_trace(first, second)
     other = run(CMAESAlgorithm({}, "DD", 8), 1)
     assert not np.array_equal(first[0][0], other[0][0])
+
+
+@pytest.mark.parametrize("threads", [2, 4])
+def test_the_candidates_do_not_depend_on_the_blas_threads(threads: int) -> None:
+    # OpenBLAS sums a product in another order on more threads; a run of 433 parameters
+    # (CC7's shared 16-unit network) diverged between a study's workers
+    # (OMP_NUM_THREADS=1) and the same command run alone
+    config = {"network": {"hidden": [16], "symmetry": "rotations"}}
+    with threadpool_limits(limits=1, user_api="blas"):
+        alone = run(CMAESAlgorithm(config, "CC7", 3), 8)
+    with threadpool_limits(limits=threads, user_api="blas"):
+        threaded = run(CMAESAlgorithm(config, "CC7", 3), 8)
+    assert alone[0][0].shape[1] == 433
+    assert_same_trace(alone, threaded)
 
 
 def constant_fitness(candidates: list[np.ndarray]) -> np.ndarray:

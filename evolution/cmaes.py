@@ -120,7 +120,7 @@ def _threadpools() -> ThreadpoolController:
 
 
 def one_blas_thread() -> contextlib.AbstractContextManager[Any]:
-    """A context in which BLAS (OpenBLAS, MKL...) runs on one thread, as it was after."""
+    """A context in which BLAS (OpenBLAS, MKL...) runs on one thread, as before once it exits."""
     return _threadpools().limit(limits=1, user_api="blas")
 
 

@@ -747,8 +747,10 @@ class GenomePopulation:
     of the direction that lies east: an observation is played as four rows,
     the cell turned so that each side in turn lies east
     (:func:`~evolution.networks.rotation_index`: the 8 inputs of DD robots
-    shifted, the image of H robots turned), and the action is the first best
-    of the four scores, as with :class:`~evolution.networks.NetworkSpec`'s.
+    shifted, the image of H and CC robots turned), and the action is the
+    first best of the four scores, or for continuous robots the acceleration
+    :func:`~evolution.networks.turned_accelerations` of them, as with
+    :class:`~evolution.networks.NetworkSpec`'s.
     """
 
     def __init__(

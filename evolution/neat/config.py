@@ -86,8 +86,8 @@ class NeatConfig:
     suits the normalised distance of genomes of 20 connection genes or more,
     where weight differences dominate. ``symmetry`` ``"rotations"`` evolves
     genomes of one output that score each direction on the cell turned that
-    way (:class:`~evolution.neat.compile.GenomePopulation`; robots with
-    discrete actions), as CMA-ES's networks may
+    way (:class:`~evolution.neat.compile.GenomePopulation`; a continuous
+    robot accelerates along the scores' differences), as CMA-ES's networks may
     (:mod:`evolution.networks`, "Symmetry").
     """
 

@@ -1,9 +1,9 @@
 """Can an agent read signs of a shape it never saw? The standard suite with each sign shape.
 
-    python benchmarks/bench_sign_transfer.py AGENT.npz [--shapes arrow star point ...]
-        [--training-styles DIR]
+    python benchmarks/bench_sign_transfer.py AGENT.npz [AGENT.npz ...]
+        [--shapes arrow star point ...] [--training-styles DIR] [--csv FILE]
 
-plays an agent of a hybrid robot (``H15``...), trained on mazes whose signs are
+plays each agent of a hybrid robot (``H15``...), trained on mazes whose signs are
 arrows, on the standard suite (18 mazes x 4 rotations) with its signs redrawn
 in each shape (same kinds, lightnesses and directions: ``C1`` becomes
 ``Cstar-1``, ``L.25`` becomes ``Lstar-.25``...), and runs the input-recognition
@@ -17,11 +17,14 @@ draw-signs OUT`` writes ``OUT/training``) and adds its first shapes to the defau
 It prints one row per shape: whether the shape can carry a direction at all
 (:func:`~amaze.maze.arrow_styles.directional`), suite success, mean R̄ and input
 recognition with its four classes; then the shapes that cannot carry a direction.
+``--csv FILE`` also writes every agent's rows to one CSV file (a study's agents
+side by side).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import sys
 import tempfile
 from pathlib import Path
@@ -59,7 +62,9 @@ def reshaped(maze: str, shape: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("agent", type=Path, help="an agent file of a hybrid robot (.npz)")
+    parser.add_argument(
+        "agents", type=Path, nargs="+", metavar="AGENT", help="agent files of a hybrid robot (.npz)"
+    )
     parser.add_argument("--shapes", nargs="+", metavar="SHAPE", help=f"({' '.join(SHAPES)})")
     parser.add_argument(
         "--training-styles",
@@ -67,15 +72,23 @@ def main(argv: list[str] | None = None) -> int:
         metavar="DIR",
         help="also register this folder of sign PNGs (amaze draw-signs OUT writes OUT/training)",
     )
+    parser.add_argument("--csv", type=Path, metavar="FILE", help="also write the rows to FILE")
     args = parser.parse_args(argv)
-    try:
-        agent = load_agent(args.agent)
-    except (AgentFileError, OSError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    robot = agent.robot.to_string()
-    if agent.robot.discrete_inputs:
-        print(f"error: the agent's robot {robot} sees no images: give an H robot", file=sys.stderr)
+    agents = []
+    for path in args.agents:
+        try:
+            agent = load_agent(path)
+        except (AgentFileError, OSError) as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        if agent.robot.discrete_inputs:
+            robot = agent.robot.to_string()
+            print(f"error: {path}: its robot {robot} sees no images: give an H robot",
+                  file=sys.stderr)  # fmt: skip
+            return 2
+        agents.append((path, agent))
+    if args.csv is not None and not args.csv.parent.is_dir():
+        print(f"error: --csv {args.csv}: folder {args.csv.parent} does not exist", file=sys.stderr)
         return 2
     with tempfile.TemporaryDirectory() as folder:
         draw_held_out(Path(folder))
@@ -93,23 +106,13 @@ def main(argv: list[str] | None = None) -> int:
         except AmazeError as error:
             print(f"error: {error}", file=sys.stderr)
             return 2
-        suite = standard_suite().maze_strings(rotations=True)
-        print(f"agent {args.agent} ({robot}), standard suite (18 mazes x 4 rotations) per shape")
-        print("shape      directional  success   mean R̄   inputs  (clue  trap  lure  empty)")
-        for shape in shapes:
-            mazes = [reshaped(maze, shape) for maze in suite]
-            report = Evaluator(robot, mazes, inputs=False).evaluate(agent)
-            spec = MazeSpec.from_string(reshaped(INPUT_SIGNS_MAZE, shape))
-            inputs = enumerate_inputs(robot, spec.clue, spec.lure, spec.trap)
-            recognition = evaluate_inputs(agent, inputs)
-            rates = recognition.rates
-            classes = "  ".join(f"{rates.get(name, float('nan')):.2f}" for name in
-                                ("clue", "trap", "lure", "empty"))  # fmt: skip
-            print(
-                f"{shape:<10} {'yes' if directions[shape] else 'no':<11}"
-                f" {report.success_rate:7.3f}  {report.normalized_reward:+7.3f}"
-                f"  {recognition.overall:6.3f}  ({classes})"
-            )
+        rows = [row for path, agent in agents for row in _rows(path, agent, shapes, directions)]
+        if args.csv is not None:
+            with args.csv.open("w", newline="", encoding="utf-8") as stream:
+                writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+                writer.writeheader()
+                writer.writerows(rows)
+            print(f"rows written to {args.csv}")
         blind = [shape for shape in shapes if not directions[shape]]
         if blind:
             print(
@@ -117,6 +120,38 @@ def main(argv: list[str] | None = None) -> int:
                 f" any training target): {', '.join(blind)}"
             )
     return 0
+
+
+CLASSES = ("clue", "trap", "lure", "empty")
+
+
+def _rows(path: Path, agent, shapes: list[str], directions: dict[str, bool]) -> list[dict]:
+    """Print and return the rows of one agent: the suite and the input test in each shape."""
+    robot = agent.robot.to_string()
+    suite = standard_suite().maze_strings(rotations=True)
+    print(f"agent {path} ({robot}), standard suite (18 mazes x 4 rotations) per shape")
+    print("shape      directional  success   mean R̄   inputs  (clue  trap  lure  empty)")
+    rows = []
+    for shape in shapes:
+        mazes = [reshaped(maze, shape) for maze in suite]
+        report = Evaluator(robot, mazes, inputs=False).evaluate(agent)
+        spec = MazeSpec.from_string(reshaped(INPUT_SIGNS_MAZE, shape))
+        inputs = enumerate_inputs(robot, spec.clue, spec.lure, spec.trap)
+        recognition = evaluate_inputs(agent, inputs)
+        rates = {name: recognition.rates.get(name, float("nan")) for name in CLASSES}
+        classes = "  ".join(f"{rate:.2f}" for rate in rates.values())
+        print(
+            f"{shape:<10} {'yes' if directions[shape] else 'no':<11}"
+            f" {report.success_rate:7.3f}  {report.normalized_reward:+7.3f}"
+            f"  {recognition.overall:6.3f}  ({classes})"
+        )
+        rows.append({
+            "agent": str(path), "shape": shape, "directional": directions[shape],
+            "success_rate": report.success_rate, "normalized_reward": report.normalized_reward,
+            "input_recognition": recognition.overall,
+            **{f"input_recognition_{name}": rate for name, rate in rates.items()},
+        })  # fmt: skip
+    return rows
 
 
 if __name__ == "__main__":

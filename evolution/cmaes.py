@@ -40,6 +40,7 @@ import cma
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
+from amaze.agents.network_inputs import POOLINGS
 from amaze.agents.robot import Robot, as_robot
 from amaze.runs.config import config_from_dict
 from amaze.validation import check_integer, check_number, closest
@@ -52,7 +53,7 @@ __all__ = ["DEFAULT_NETWORK", "CMAESAlgorithm", "CMAESConfig", "default_popsize"
 #: The default network: a linear policy (see :class:`CMAESConfig`).
 DEFAULT_NETWORK: dict[str, Any] = {"hidden": [], "activation": "tanh"}
 #: Network keys a CMA-ES configuration may set (the robot comes from the run).
-_NETWORK_KEYS = ("hidden", "activation", "pool", "symmetry", "filters", "stride")
+_NETWORK_KEYS = ("hidden", "activation", "pool", "symmetry", "filters", "stride", "pooling")
 #: cma options the algorithm sets itself (they may not be given in ``cma_options``).
 _RESERVED_OPTIONS = frozenset(
     "seed popsize CMA_diagonal randn verbose verb_log verb_disp verb_filenameprefix"
@@ -272,6 +273,11 @@ def _check_network(network: Any) -> dict[str, Any]:
         stride = check_integer(
             "CMA-ES config 'network': stride", stride, minimum=1, error=EvolutionConfigError
         )
+    pooling = network.get("pooling", POOLINGS[0])
+    if pooling not in POOLINGS:
+        raise EvolutionConfigError(
+            f"CMA-ES config 'network': pooling {pooling!r} is not one of {', '.join(POOLINGS)}"
+        )
     return {
         "hidden": list(spec.hidden),
         "activation": spec.activation,
@@ -279,6 +285,7 @@ def _check_network(network: Any) -> dict[str, Any]:
         "symmetry": spec.symmetry,
         "filters": filters,
         "stride": stride,
+        "pooling": pooling,
     }
 
 
@@ -337,6 +344,7 @@ class CMAESAlgorithm:
             symmetry=network["symmetry"],
             filters=network.get("filters", 0),
             stride=network.get("stride"),
+            pooling=network.get("pooling", POOLINGS[0]),
         )
         self._rng = np.random.default_rng(self.seed)
         self._np_state = np.random.RandomState(self.seed).get_state()

@@ -9,9 +9,10 @@ individual ``k // M``, see :mod:`evolution.population`). This is what CMA-ES
 optimises.
 
 **Inputs.** ``DD`` robots see their 8 floats. Image robots (``CD``/``H``/``CC``)
-see a ``v x v`` uint8 image, which a fixed, non-evolved encoder average-pools
-to a ``pool x pool`` grid (default 5) of pixels scaled to [0, 1], so that
-CMA-ES is not given a weight per pixel. The block edges are
+see a ``v x v`` uint8 image, which a fixed, non-evolved encoder pools to a
+``pool x pool`` grid (default 5) of pixels scaled to [0, 1], so that CMA-ES is
+not given a weight per pixel: each block's mean (``pooling = "mean"``, the
+default) or its brightest pixel (``"max"``). The block edges are
 ``floor(linspace(0, v, pool + 1) + 0.5)``; ``pool = v`` feeds the raw pixels.
 
 **Layers.** Dense layers ``n_inputs -> hidden... -> n_outputs``, the hidden
@@ -63,7 +64,14 @@ import numba
 import numpy as np
 
 from amaze.agents.engine import threads_pay_off
-from amaze.agents.network_inputs import DEFAULT_POOL, SYMMETRIES, pool_edges, rotation_index
+from amaze.agents.network_inputs import (
+    DEFAULT_POOL,
+    POOLINGS,
+    SYMMETRIES,
+    pool_blocks,
+    pool_edges,
+    rotation_index,
+)
 from amaze.agents.robot import Robot, RobotStringError, as_robot
 from amaze.validation import (
     MAX_HIDDEN_LAYERS,
@@ -124,7 +132,9 @@ class NetworkSpec:
 
     ``robot`` is stored as its canonical string (``DD``, ``CD15``, ``CC11``);
     ``pool`` is the side of the pooled image grid, ``None`` for discrete-input
-    robots (image robots default to :data:`DEFAULT_POOL`); ``symmetry`` is
+    robots (image robots default to :data:`DEFAULT_POOL`); ``pooling`` how a
+    block is reduced, one of :data:`POOLINGS` (``"max"`` only with a pooled
+    image); ``symmetry`` is
     one of :data:`SYMMETRIES` (``"rotations"``: one network scores each
     direction). ``filters`` > 0 (image robots) reads the
     image through that many evolved 3x3 filters slid with ``stride`` instead
@@ -138,6 +148,7 @@ class NetworkSpec:
     symmetry: str = "none"
     filters: int = 0
     stride: int | None = None
+    pooling: str = POOLINGS[0]
 
     def __post_init__(self) -> None:
         try:
@@ -196,6 +207,15 @@ class NetworkSpec:
                 "pool", pool, minimum=1, maximum=int(robot.vision), error=EvolutionConfigError
             )
             object.__setattr__(self, "pool", pool)
+        if self.pooling not in POOLINGS:
+            raise EvolutionConfigError(
+                f"pooling {self.pooling!r} is not one of {', '.join(POOLINGS)}"
+            )
+        if self.pooling != POOLINGS[0] and self.pool is None:
+            image = "convolves its image" if filters else f"robot {robot} has no image"
+            raise EvolutionConfigError(
+                f"pooling {self.pooling!r}: the network {image} to pool (give no pooling)"
+            )
         check_symmetry(self.symmetry)
 
     # -- description ----------------------------------------------------------
@@ -265,13 +285,16 @@ class NetworkSpec:
             "symmetry": self.symmetry,
             "filters": self.filters,
             "stride": self.stride,
+            "pooling": self.pooling,
         }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> NetworkSpec:
         """The spec described by ``data`` (an optional ``"type": "mlp"`` is accepted).
 
-        Unknown keys and bad values raise :class:`EvolutionConfigError`.
+        Unknown keys and bad values raise :class:`EvolutionConfigError`; a
+        description without ``pooling`` (files written before it existed) means
+        ``"mean"``.
         """
         if not isinstance(data, Mapping):
             raise EvolutionConfigError(f"a network spec must be a mapping, not {data!r}")
@@ -279,7 +302,7 @@ class NetworkSpec:
         kind = data.pop("type", "mlp")
         if kind != "mlp":
             raise EvolutionConfigError(f"network type {kind!r} is not 'mlp'")
-        keys = {"robot", "hidden", "activation", "pool", "symmetry", "filters", "stride"}
+        keys = {"robot", "hidden", "activation", "pool", "symmetry", "filters", "stride", "pooling"}
         unknown = sorted(set(data) - keys)
         if unknown:
             named = ", ".join(f"{key}{closest(key, keys)}" for key in unknown)
@@ -297,6 +320,7 @@ class NetworkSpec:
             symmetry=data.get("symmetry", "none"),
             filters=data.get("filters", 0),
             stride=data.get("stride"),
+            pooling=data.get("pooling", POOLINGS[0]),
         )
 
     # -- parameters -----------------------------------------------------------
@@ -349,9 +373,9 @@ class NetworkSpec:
     def encode(self, observations: np.ndarray) -> np.ndarray:
         """float32 ``(n, n_inputs)``: the network inputs of a batch of observations.
 
-        The 8 floats of discrete inputs; the pooled image (block means of the
-        pixels / 255) of image robots. The kernel does the same, fused. (A
-        convolutional network's inputs depend on its filters: refused.)
+        The 8 floats of discrete inputs; the pooled image (block means or
+        maxima of the pixels / 255) of image robots. The kernel does the same,
+        fused. (A convolutional network's inputs depend on its filters: refused.)
         """
         if self.filters:
             raise EvolutionConfigError(
@@ -362,6 +386,9 @@ class NetworkSpec:
         if self.pool is None:
             return observations.reshape(n, -1).astype(np.float32)
         v = int(self.robot_info.vision)
+        if self.pooling == "max":
+            pixels = observations.reshape(n, v * v)[:, pool_blocks(v, self.pool)]
+            return pixels.max(axis=-1).astype(np.float32) * np.float32(1.0 / 255.0)
         images = observations.reshape(n, v, v).astype(np.float64)
         edges = pool_edges(v, self.pool)
         out = np.empty((n, self.pool, self.pool), dtype=np.float64)
@@ -689,11 +716,11 @@ def _forward_parallel(
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _pool(images, rows, edges, scale, out):
-    """Pooled features of the listed agents: block sums of the pixels times ``scale``.
+def _pool(images, rows, edges, scale, maximum, out):
+    """Pooled features of the listed agents: block sums (or maxima) of the pixels times ``scale``.
 
-    Each band of image rows is summed column-wise first (contiguous, vectorised),
-    then the band's column sums are cut into blocks.
+    Each band of image rows is reduced column-wise first (contiguous, vectorised),
+    then the band's column sums (maxima) are cut into blocks.
     """
     v = images.shape[2]
     g = edges.shape[0] - 1
@@ -703,13 +730,22 @@ def _pool(images, rows, edges, scale, out):
         for gr in range(g):
             for c in range(v):
                 band[c] = 0
-            for r in range(edges[gr], edges[gr + 1]):
-                for c in range(v):
-                    band[c] += images[k, r, c]
+            if maximum:
+                for r in range(edges[gr], edges[gr + 1]):
+                    for c in range(v):
+                        band[c] = max(band[c], np.int32(images[k, r, c]))
+            else:
+                for r in range(edges[gr], edges[gr + 1]):
+                    for c in range(v):
+                        band[c] += images[k, r, c]
             for gc in range(g):
                 total = 0
-                for c in range(edges[gc], edges[gc + 1]):
-                    total += band[c]
+                if maximum:
+                    for c in range(edges[gc], edges[gc + 1]):
+                        total = max(total, band[c])
+                else:
+                    for c in range(edges[gc], edges[gc + 1]):
+                        total += band[c]
                 f = gr * g + gc
                 out[k, f] = np.float32(total) * scale[f]
 
@@ -781,7 +817,10 @@ class NetworkPopulation:
         if spec.pool is not None:
             edges = pool_edges(self._vision, spec.pool)
             self._edges = edges
+            self._maximum = spec.pooling == "max"
             counts = np.outer(np.diff(edges), np.diff(edges)).ravel()
+            if self._maximum:
+                counts = np.ones_like(counts)  # the brightest pixel, not a sum
             self._scale = (1.0 / (255.0 * counts)).astype(np.float32)
         self._params_t = np.ascontiguousarray(self.params.T)
         self._n_inputs = spec.n_inputs
@@ -938,7 +977,7 @@ class NetworkPopulation:
                 )  # fmt: skip
             else:
                 x = np.empty((n, self._n_inputs), dtype=np.float32)
-                _pool(images, agents, self._edges, self._scale, x)
+                _pool(images, agents, self._edges, self._scale, self._maximum, x)
         mode = self._mode
         if copies > 1:
             # kernel row 4 k + d: agent k's inputs turned so that side d is east;

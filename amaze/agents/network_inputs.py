@@ -4,9 +4,11 @@ Evolution's networks (:mod:`evolution.networks`) and the RL learners' shared
 network kind (:mod:`rl_baselines.jax.spec`) read a robot's observation the same
 way, so that one network spec means one network in both trainers:
 
-* **pooled retina**: an image robot's ``v x v`` uint8 image averaged over a
+* **pooled retina**: an image robot's ``v x v`` uint8 image reduced over a
   ``pool x pool`` grid of blocks (edges ``floor(linspace(0, v, pool + 1) +
-  0.5)``), pixels scaled to [0, 1]; discrete-input robots read their 8 floats;
+  0.5)``), pixels scaled to [0, 1]: each block's mean (``pooling = "mean"``)
+  or its brightest pixel (``"max"``: a sign's lightness whatever the width of
+  its strokes); discrete-input robots read their 8 floats;
 * **convolution**: ``filters`` 3x3 filters slid over the image with a
   ``stride`` that tiles it (:func:`stride_problem`, :func:`default_stride`),
   ``grid x grid`` positions (:func:`grid_side`), pixels scaled to [0, 1];
@@ -24,9 +26,11 @@ __all__ = [
     "DEFAULT_POOL",
     "FILTER_SIDE",
     "MAX_FILTERS",
+    "POOLINGS",
     "SYMMETRIES",
     "default_stride",
     "grid_side",
+    "pool_blocks",
     "pool_edges",
     "pool_matrix",
     "rotation_index",
@@ -39,6 +43,8 @@ ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
 SYMMETRIES: tuple[str, ...] = ("none", "rotations")
 #: Default side of the pooled grid of image robots.
 DEFAULT_POOL = 5
+#: How a block of the pooled grid is reduced (the first is the default).
+POOLINGS: tuple[str, ...] = ("mean", "max")
 #: Side of a convolution's filter.
 FILTER_SIDE = 3
 #: Most filters a network may have (a sanity bound).
@@ -100,3 +106,22 @@ def pool_matrix(vision: int, pool: int) -> np.ndarray:
             count = (edges[r + 1] - edges[r]) * (edges[c + 1] - edges[c])
             matrix[rows, cols, r, c] = 1.0 / (255.0 * count)
     return matrix.reshape(vision * vision, pool * pool)
+
+
+def pool_blocks(vision: int, pool: int) -> np.ndarray:
+    """int64 ``(pool * pool, m)``: the pixels (row-major indices) of each block of the grid.
+
+    Row ``r * pool + c`` lists block ``(r, c)``'s pixels, padded to the largest
+    block's ``m`` by repeating its first pixel, so that
+    ``images.reshape(n, -1)[:, pool_blocks(v, p)].max(axis=-1) / 255`` is the
+    max-pooled retina (a repeated pixel does not change a maximum).
+    """
+    edges = pool_edges(vision, pool)
+    grid = np.arange(vision * vision, dtype=np.int64).reshape(vision, vision)
+    blocks = [
+        grid[edges[r] : edges[r + 1], edges[c] : edges[c + 1]].ravel()
+        for r in range(pool)
+        for c in range(pool)
+    ]
+    width = max(block.size for block in blocks)
+    return np.stack([np.pad(b, (0, width - b.size), constant_values=b[0]) for b in blocks])

@@ -437,7 +437,16 @@ def _cmd_draw_signs(args: argparse.Namespace) -> None:
     print(f"  {' '.join(training)}")
     print(f"{len(held_out)} held-out styles (never train on them) -> {folder / HELD_OUT_FOLDER}:")
     print(f"  {' '.join(held_out)}")
-    config = json.dumps({"coevolution": {"shapes": ["arrow", *training]}})
+    listed = json.dumps({"coevolution": {"shapes": ["arrow", *training]}})
+    drawn = json.dumps(
+        {
+            "coevolution": {
+                "shapes": ["arrow"],
+                "sign_styles": len(training),
+                "sign_styles_seed": args.seed,
+            }
+        }
+    )
     print(
         f"use them: amaze --signs {folder / TRAINING_FOLDER} ... (maze strings such as"
         f" M4_10x10_C{training[0]}-1), or AMAZE_CUSTOM_SIGNS={folder / TRAINING_FOLDER}"
@@ -445,7 +454,8 @@ def _cmd_draw_signs(args: argparse.Namespace) -> None:
     )
     print(
         "train on them (amaze-evolve, or amaze-train --framework jax, --regime coevolution"
-        f" --config FILE.json): {config}"
+        f" --config FILE.json): {drawn} (the run draws these styles itself), or with them"
+        f" registered: {listed}"
     )
 
 

@@ -84,6 +84,7 @@ from amaze.curriculum.replay import (
     staleness_weights,
 )
 from amaze.curriculum.validation import reserved_seeds, unseen_mazes
+from amaze.maze.arrow_styles import MAX_TRAINING_STYLES, TRAINING_PREFIX
 from amaze.maze.maze import Maze, as_mazes, rotations
 from amaze.maze.signs import Sign, SignError
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
@@ -145,10 +146,15 @@ class MazePopulationConfig:
     lightnesses, so that agents that see images (H robots) learn to read more
     than one shape; mutants keep their parent's (a sign kind a mutation adds
     comes from the genome's sign set: arrows). ``None`` (the default): the
-    target's own signs. The run's validation mazes take the shapes in turn
-    (:attr:`~amaze.runs.coevolution.CoevolutionRun.validation_mazes`); the
-    unseen mazes keep the target's. Robots that read sign values, not images
-    (DD), refuse the option.
+    target's own signs. ``sign_styles`` > 0 adds that many arrow styles drawn
+    from ``sign_styles_seed`` (:func:`amaze.maze.arrow_styles.training_styles`,
+    the shapes ``arrowv0`` ... that ``amaze draw-signs`` writes) to those
+    shapes: the run draws them into its folder and registers them itself, so
+    that its config alone says what it trained on, and it resumes without
+    setup (:attr:`drawn_shapes`). The run's validation mazes take the shapes
+    in turn (:attr:`~amaze.runs.coevolution.CoevolutionRun.validation_mazes`);
+    the unseen mazes keep the target's. Robots that read sign values, not
+    images (DD), refuse both options.
     """
 
     capacity: int = 64
@@ -165,6 +171,8 @@ class MazePopulationConfig:
     validation_every: int = 4
     validation_candidates: int = 4
     shapes: tuple[str, ...] | None = None
+    sign_styles: int = 0
+    sign_styles_seed: int = 0
 
     def __post_init__(self) -> None:
         def integer(name: str, low: int, high: int) -> None:
@@ -191,6 +199,8 @@ class MazePopulationConfig:
         integer("validation_every", 1, 1_000_000)
         integer("validation_candidates", 1, 256)
         integer("min_size", MIN_SIZE, MAX_SIZE)
+        integer("sign_styles", 0, MAX_TRAINING_STYLES)
+        integer("sign_styles_seed", 0, SEED_RANGE - 1)
         if self.max_size is not None:
             integer("max_size", self.min_size, MAX_SIZE)
         for name in ("replay_probability", "staleness", "mutation_probability"):
@@ -200,6 +210,12 @@ class MazePopulationConfig:
             raise CoevolutionError(f"score {self.score!r} is not one of {', '.join(SCORES)}")
         if self.shapes is not None:
             object.__setattr__(self, "shapes", _checked_shapes(self.shapes))
+            clash = [s for s in self.shapes if s in self.style_names]
+            if clash:
+                raise CoevolutionError(
+                    f"shapes {clash!r} are among the {self.sign_styles} sign_styles the run"
+                    " draws itself (list them once: leave them out of shapes)"
+                )
         if self.capacity < self.batch:
             raise CoevolutionError(
                 f"capacity {self.capacity} is smaller than batch {self.batch}: a full"
@@ -216,6 +232,19 @@ class MazePopulationConfig:
         if self.shapes is not None:
             data["shapes"] = list(self.shapes)
         return data
+
+    @property
+    def style_names(self) -> tuple[str, ...]:
+        """The shape names of the ``sign_styles`` arrow styles (``arrowv0`` ...)."""
+        return tuple(f"{TRAINING_PREFIX}{i}" for i in range(self.sign_styles))
+
+    @property
+    def drawn_shapes(self) -> tuple[str, ...] | None:
+        """The shapes fresh family mazes are drawn in: ``shapes``, then the drawn
+        styles' names; ``None`` when neither is given (the target's own signs)."""
+        if self.shapes is None and not self.sign_styles:
+            return None
+        return (*(self.shapes or ()), *self.style_names)
 
 
 _Options = TypeVar("_Options")
@@ -568,10 +597,9 @@ class MazePopulation:
             if seed not in self.reserved:
                 break
         spec = dataclasses.replace(spec, width=width, height=height, seed=seed)
-        if self.config.shapes is not None:
-            spec = spec.in_shape(
-                self.config.shapes[int(self.rng.integers(len(self.config.shapes)))]
-            )
+        shapes = self.config.drawn_shapes
+        if shapes is not None:
+            spec = spec.in_shape(shapes[int(self.rng.integers(len(shapes)))])
         return spec.to_string()
 
     def __getstate__(self) -> dict[str, Any]:

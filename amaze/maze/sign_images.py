@@ -27,9 +27,11 @@ Custom shapes
     square image is the sign pointing east, rotated for the other directions;
     an image four squares high holds the frames E, N, W, S from top to bottom,
     its top row the north row of each frame. Any other shape raises
-    :class:`~amaze.errors.SignError`. As in the reference, the sign's
-    lightness is ignored for custom images (discrete agents, which only see
-    the value, still see it).
+    :class:`~amaze.errors.SignError`. The sign's lightness scales the
+    image's gray levels (pen gray level ``g``: ``floor(k * g / 255 + 0.5)``),
+    so lightness 1 shows the image as it is and clues, lures and traps of one
+    custom shape differ as built-in ones do. The reference ignores the
+    lightness of custom images, which makes those three look alike.
 
 Values are ``float32``. The differences from the reference are listed in
 ``docs/reference-behaviour.md`` §10. Results are cached in memory and returned
@@ -140,7 +142,7 @@ def _cache_key(sign: Sign, size: int) -> tuple[str, int, int, str | None, int]:
             mtime = path.stat().st_mtime_ns
         except OSError as error:
             raise SignError(f"custom sign image '{path}' cannot be read: {error}") from None
-        return sign.shape, 0, size, str(path), mtime
+        return sign.shape, pen_gray_level(sign.value), size, str(path), mtime
     if sign.shape not in BUILTIN_SHAPES:
         raise SignError(
             f"unknown sign shape '{sign.shape}' (is its custom image still registered?)"
@@ -151,7 +153,7 @@ def _cache_key(sign: Sign, size: int) -> tuple[str, int, int, str | None, int]:
 @functools.lru_cache(maxsize=_CACHE_SIZE)
 def _frames_u8(shape: str, gray: int, size: int, path: str | None, mtime: int) -> np.ndarray:
     if path is not None:
-        frames = _custom_frames(Path(path), size)
+        frames = _lit(_custom_frames(Path(path), size), gray)
     else:
         frames = _builtin_frames(shape, gray, size)
     frames = np.ascontiguousarray(frames, dtype=np.uint8)
@@ -457,6 +459,12 @@ def _custom_frames(path: Path, size: int) -> np.ndarray:
     if count == 1:
         frames = [np.rot90(frames[0], d) for d in range(4)]
     return np.stack(frames)
+
+
+def _lit(frames: np.ndarray, gray: int) -> np.ndarray:
+    """Gray levels ``frames`` (uint8) scaled by pen gray level ``gray``, rounded half up."""
+    levels = frames.astype(np.int64)
+    return ((2 * levels * gray + 255) // 510).astype(np.uint8)
 
 
 def _to_gray(image):  # PIL.Image.Image -> PIL.Image.Image (mode 'L')

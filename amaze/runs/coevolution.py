@@ -96,8 +96,11 @@ from amaze.curriculum.maze_population import (
 )
 from amaze.curriculum.picture import save_population_png
 from amaze.curriculum.validation import unseen_mazes, validation_mazes
+from amaze.errors import SignError, one_line
 from amaze.evaluation.policy import run_episodes
 from amaze.maze import Maze, as_mazes, rotations
+from amaze.maze.arrow_styles import TRAINING_FOLDER, write_sign_styles
+from amaze.maze.signs import known_shapes, register_custom_signs
 from amaze.maze.spec import MazeSpec
 from amaze.runs.anytime import Spent
 from amaze.runs.branches import Clock
@@ -124,6 +127,8 @@ POPULATION_FIELDS = (
 OUTPUTS = ("summary.json", "progress.csv", "mazes.csv", "population.png", "coevolution.png")
 #: The parts of a round the loop times itself (``summary.json``'s ``time``).
 LOOP_TIME_PARTS = ("mazes", "validation")
+#: The run's sub-folder of drawn sign styles (the ``sign_styles`` option).
+SIGNS_FOLDER = "signs"
 
 
 @dataclass
@@ -304,11 +309,13 @@ class CoevolutionRun(Run):
     def validation_mazes(self) -> list[str]:
         """The mazes the champion is chosen on (each played in its 4 rotations).
 
-        With the ``shapes`` option, their signs are drawn in those shapes in
-        turn (maze ``i`` in ``shapes[i % len(shapes)]``): a champion chosen on
-        arrows alone would be the best arrow reader, whatever the run trained on.
+        With the ``shapes`` or ``sign_styles`` options, their signs are drawn
+        in those shapes in turn (maze ``i`` in ``shapes[i % len(shapes)]``,
+        :attr:`~amaze.curriculum.maze_population.MazePopulationConfig.drawn_shapes`):
+        a champion chosen on arrows alone would be the best arrow reader,
+        whatever the run trained on.
         """
-        c, shapes = self.config, self.options.shapes
+        c, shapes = self.config, self.options.drawn_shapes
         mazes = validation_mazes(c.target, self.options.validation, c.seed)
         if shapes is None:
             return mazes
@@ -319,8 +326,28 @@ class CoevolutionRun(Run):
 
     # -- the lifecycle's hooks ------------------------------------------------
 
+    def register_sign_styles(self) -> None:
+        """Draw the ``sign_styles`` option's arrow styles into ``signs/`` and register them.
+
+        ``signs/training`` holds the styles (``arrowv0.png`` ...), ``signs/held-out``
+        the drawings never trained on, as ``amaze draw-signs`` writes them; the
+        same config draws the same images, so a resumed run (or a process that
+        plays its agent) registers them again from the folder or redraws them.
+        """
+        options = self.options
+        if not options.sign_styles:
+            return
+        known_shapes()  # the environment's custom signs first: the run's styles win
+        folder = self.out / SIGNS_FOLDER
+        try:
+            write_sign_styles(folder, options.sign_styles, options.sign_styles_seed)
+            register_custom_signs(folder / TRAINING_FOLDER)
+        except (SignError, OSError) as problem:
+            raise self.config.error(f"sign_styles: {one_line(problem)}") from None
+
     def start(self) -> None:
         """A fresh population and learner; a steps budget that cannot pay a round is refused."""
+        self.register_sign_styles()
         c = self.config
         mazes = MazePopulation.for_run(c.target, self.options, c.seed, self.validation_mazes)
         self.state = self.new_state(mazes)
@@ -329,6 +356,7 @@ class CoevolutionRun(Run):
     def restore(self) -> int | None:
         if not self.checkpoint.exists():
             return None
+        self.register_sign_styles()
         c = self.config
         where = f"checkpoint {str(self.checkpoint)!r}"
         state = read_checkpoint(self.checkpoint, self.state_codec(), c.error, self.state_class)

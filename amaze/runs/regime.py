@@ -461,10 +461,15 @@ class RegimeConfig(RunConfig):
                 self.selector = SelectorConfig.from_dict(self.selector).to_dict()
         except CoevolutionError as problem:
             raise self.error(str(problem)) from None
-        if checked.shapes is not None and as_robot(self.robot).discrete_inputs:
+        if checked.drawn_shapes is not None and as_robot(self.robot).discrete_inputs:
+            named = (
+                f"shapes {list(checked.shapes)!r}"
+                if checked.shapes is not None
+                else f"sign_styles {checked.sign_styles}"
+            )
             raise self.error(
-                f"coevolution shapes {list(checked.shapes)!r} have no effect for robot"
-                f" {self.robot}: it reads sign values, not their images (give an H robot)"
+                f"coevolution {named} have no effect for robot {self.robot}: it reads sign"
+                " values, not their images (give an H robot)"
             )
         self.check_coevolution_options(checked)
         self.coevolution = options

@@ -189,7 +189,7 @@ def _features(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
     if spec.kind == "network":
         x = obs.astype(jnp.float32).reshape(obs.shape[0], -1)
         if spec.pool is not None:
-            x = x @ jnp.asarray(spec.pooling())
+            x = spec.pooled(x, jnp)
         if spec.copies == 4:
             x = x[:, jnp.asarray(spec.turns())]
         return x

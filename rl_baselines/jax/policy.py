@@ -86,7 +86,6 @@ class NumpyPolicy:
         self.params: dict[str, dict[str, np.ndarray]] = {}
         if spec.kind == "network" and not spec.filters:
             self._turns = spec.turns()
-            self._pooling = spec.pooling() if spec.pool is not None else None
         for module, shape in spec.layer_shapes().items():
             layer = params.get(module)
             if layer is None and actor_only and "value_net" in module:
@@ -109,7 +108,7 @@ class NumpyPolicy:
         if self.spec.kind == "network":
             x = x.reshape(x.shape[0], -1).astype(np.float32)
             if self.spec.pool is not None:
-                x = x @ self._pooling
+                x = self.spec.pooled(x, np)
             return x[:, self._turns] if self.spec.copies == 4 else x
         if not self.spec.images:
             return x.astype(np.float32, copy=False).reshape(-1, 8)

@@ -35,9 +35,11 @@ from amaze.agents.network_inputs import (
     DEFAULT_POOL,
     FILTER_SIDE,
     MAX_FILTERS,
+    POOLINGS,
     SYMMETRIES,
     default_stride,
     grid_side,
+    pool_blocks,
     pool_matrix,
     rotation_index,
     stride_problem,
@@ -74,7 +76,15 @@ FILTERS = "features_extractor.filters"
 #: The kinds of policy (see the module docstring).
 KINDS: tuple[str, ...] = ("sb3", "network")
 #: The keys of a ``network`` spec in a config (evolution's, less its robot).
-NETWORK_KEYS: tuple[str, ...] = ("hidden", "activation", "pool", "symmetry", "filters", "stride")
+NETWORK_KEYS: tuple[str, ...] = (
+    "hidden",
+    "activation",
+    "pool",
+    "symmetry",
+    "filters",
+    "stride",
+    "pooling",
+)
 
 
 @dataclass(frozen=True)
@@ -84,9 +94,9 @@ class PolicySpec:
     ``robot`` is a robot string with discrete actions (``DD`` or ``H<v>``);
     ``net_pi`` / ``net_vf`` the hidden widths of the policy and value MLPs;
     ``features_dim`` the CNN's output width (``sb3`` kind, hybrid robots);
-    ``kind``, ``activation``, ``symmetry``, ``pool``, ``filters`` and
-    ``stride`` as the module docstring says (``sb3``: tanh, no symmetry, no
-    pool, no filters).
+    ``kind``, ``activation``, ``symmetry``, ``pool``, ``pooling``, ``filters``
+    and ``stride`` as the module docstring says (``sb3``: tanh, no symmetry,
+    no pool, no filters).
     """
 
     robot: str = "DD"
@@ -99,6 +109,7 @@ class PolicySpec:
     pool: int | None = None
     filters: int = 0
     stride: int | None = None
+    pooling: str = POOLINGS[0]
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -108,7 +119,8 @@ class PolicySpec:
             self.symmetry,
             self.pool,
             self.filters,
-        ) != ("tanh", "none", None, 0):
+            self.pooling,
+        ) != ("tanh", "none", None, 0, POOLINGS[0]):
             raise RLConfigError(
                 "an SB3 policy has tanh, no symmetry, no pool and no filters (a network spec"
                 " gives them)"
@@ -168,10 +180,19 @@ class PolicySpec:
         """int64 ``(4, n_inputs)``: the inputs' gather of each quarter-turn (rotations)."""
         return rotation_index(self.pool)
 
-    def pooling(self) -> np.ndarray:
-        """float32 ``(v * v, pool * pool)``: the image's pixels to the pooled retina."""
+    def pooled(self, pixels: Any, xp: Any) -> Any:
+        """The pooled retina ``(n, pool * pool)`` of float32 ``pixels`` ``(n, v * v)`` (0..255).
+
+        Block means (a product with :func:`~amaze.agents.network_inputs.pool_matrix`)
+        or maxima (a gather of :func:`~amaze.agents.network_inputs.pool_blocks`),
+        scaled to [0, 1], in ``xp`` (numpy or ``jax.numpy``), as evolution's encoder.
+        """
         assert self.pool is not None
-        return pool_matrix(int(self.parsed_robot.vision), self.pool).astype(np.float32)
+        vision = int(self.parsed_robot.vision)
+        if self.pooling == "max":
+            brightest = pixels[:, xp.asarray(pool_blocks(vision, self.pool))].max(axis=-1)
+            return brightest * np.float32(1.0 / 255.0)
+        return pixels @ xp.asarray(pool_matrix(vision, self.pool).astype(np.float32))
 
     @property
     def observation_shape(self) -> tuple[int, ...]:
@@ -230,6 +251,7 @@ class PolicySpec:
             "symmetry": self.symmetry,
             "filters": self.filters,
             "stride": self.stride,
+            "pooling": self.pooling,
         }
 
     def actor_vector(self, params: Mapping[str, Mapping[str, np.ndarray]]) -> np.ndarray:
@@ -281,9 +303,10 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
     ``network`` takes evolution's keys (:data:`NETWORK_KEYS`): ``hidden`` (the
     actor's and the critic's hidden widths), ``activation``, ``pool`` (image
     robots; default :data:`~amaze.agents.network_inputs.DEFAULT_POOL`),
-    ``symmetry``, and for image robots ``filters`` (a convolution instead of
-    the pool) with its ``stride`` (default: the largest of 3, 2, 1 that tiles
-    the retina). Unknown keys and bad values raise :class:`RLConfigError`.
+    ``pooling`` (``mean`` or ``max``, with a pool), ``symmetry``, and for
+    image robots ``filters`` (a convolution instead of the pool) with its
+    ``stride`` (default: the largest of 3, 2, 1 that tiles the retina).
+    Unknown keys and bad values raise :class:`RLConfigError`.
     """
     if not isinstance(network, Mapping):
         raise RLConfigError(f"network {network!r} is not a mapping of {', '.join(NETWORK_KEYS)}")
@@ -309,6 +332,9 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
     if symmetry not in SYMMETRIES:
         raise RLConfigError(f"network symmetry {symmetry!r} is not one of {', '.join(SYMMETRIES)}")
     pool, filters, stride = network.get("pool"), network.get("filters", 0), network.get("stride")
+    pooling = network.get("pooling", POOLINGS[0])
+    if pooling not in POOLINGS:
+        raise RLConfigError(f"network pooling {pooling!r} is not one of {', '.join(POOLINGS)}")
     filters = check_integer(
         "network filters", filters, minimum=0, maximum=MAX_FILTERS, error=RLConfigError
     )
@@ -332,6 +358,9 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
             maximum=vision,
             error=RLConfigError,
         )
+    if pooling != POOLINGS[0] and pool is None:
+        image = "convolves its image" if filters else f"robot {parsed} has no image"
+        raise RLConfigError(f"network pooling {pooling!r}: the network {image} to pool")
     return PolicySpec(
         parsed.to_string(),
         widths,
@@ -342,6 +371,7 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
         pool=pool,
         filters=filters,
         stride=stride,
+        pooling=pooling,
     )
 
 

@@ -58,6 +58,7 @@ def test_config_defaults_round_trip_through_json() -> None:
         "symmetry": "none",
         "filters": 0,
         "stride": None,
+        "pooling": "mean",
     }
     data = json.loads(json.dumps(config.to_dict()))
     assert CMAESConfig.from_dict(data) == config
@@ -78,6 +79,7 @@ def test_config_defaults_round_trip_through_json() -> None:
         "symmetry": "none",
         "filters": 0,
         "stride": None,
+        "pooling": "mean",
     }
     again = CMAESConfig.from_dict(json.loads(json.dumps(custom.to_dict())))
     assert again == custom

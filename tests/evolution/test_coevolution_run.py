@@ -9,9 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from amaze.curriculum.maze_population import MAZES_CSV_FIELDS
 from amaze.curriculum.validation import reserved_seeds
+from amaze.maze.arrow_styles import draw_arrow, training_styles
+from amaze.maze.signs import clear_custom_signs, custom_sign_path
 from amaze.maze.spec import MazeSpec
 from amaze.runs.checkpoint import read_checkpoint, write_checkpoint
 from evolution import EvolutionConfigError
@@ -274,3 +277,37 @@ def test_the_champion_is_the_latest_best_on_validation(tmp_path: Path) -> None:
     summary = json.loads((out / "summary.json").read_text())
     assert summary["champion_generation"] == tied[-1]
     assert read_agent(out / "agent.npz")[1]["generation"] == tied[-1]
+
+
+def test_sign_styles_are_drawn_into_the_run_and_read_like_the_shapes(tmp_path: Path) -> None:
+    # the run draws and registers its arrow styles itself: its config says what it trained on
+    options = {
+        **CONFIG["coevolution"],
+        "shapes": ["point"],
+        "sign_styles": 2,
+        "sign_styles_seed": 5,
+    }
+    config = {**CONFIG, "robot": "H15", "max_generations": 4, "coevolution": options}
+    path = write_config(tmp_path, config)
+    out = tmp_path / "styled"
+    clear_custom_signs()
+    try:
+        assert main(["--config", str(path), "--out", str(out), "--no-progress"]) == 0
+        drawn = sorted(p.name for p in (out / "signs" / "training").iterdir())
+        assert drawn == ["arrowv0.png", "arrowv1.png"]
+        style = training_styles(2, 5)[1]
+        with Image.open(out / "signs" / "training" / "arrowv1.png") as image:
+            assert np.array_equal(np.asarray(image), np.asarray(draw_arrow(style)))
+        assert custom_sign_path("arrowv1") == (out / "signs" / "training" / "arrowv1.png").resolve()
+        run = EvolutionCoevolutionRun(out, EvolveConfig.from_dict(config))
+        shapes = [
+            {s.shape for s in (*spec.clue, *spec.lure, *spec.trap)}
+            for spec in map(MazeSpec.from_string, run.validation_mazes)
+        ]
+        assert shapes == [{"point"}, {"arrowv0"}, {"arrowv1"}, {"point"}]
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["coevolution"]["sign_styles"] == 2
+    finally:
+        clear_custom_signs()
+    with pytest.raises(EvolutionConfigError, match=r"sign_styles 2 have no effect for robot DD"):
+        EvolveConfig.from_dict({**CONFIG, "coevolution": {"sign_styles": 2}})

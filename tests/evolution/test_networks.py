@@ -23,8 +23,9 @@ ACTIVATIONS = {
 }
 
 
-def reference_inputs(robot: str, observations: np.ndarray) -> np.ndarray:
-    """Network inputs of one batch, written out plainly: 8 floats, or pooled pixels / 255."""
+def reference_inputs(robot: str, observations: np.ndarray, pooling: str = "mean") -> np.ndarray:
+    """Network inputs of one batch, written out plainly: 8 floats, or pooled pixels / 255
+    (each block's mean, or with ``pooling = "max"`` its brightest pixel)."""
     n = observations.shape[0]
     if robot == "DD":
         return observations.astype(np.float64)
@@ -35,7 +36,10 @@ def reference_inputs(robot: str, observations: np.ndarray) -> np.ndarray:
     for r in range(5):
         for c in range(5):
             block = images[:, edges[r] : edges[r + 1], edges[c] : edges[c + 1]]
-            out[:, r, c] = block.sum(axis=(1, 2)) / block[0].size
+            if pooling == "max":
+                out[:, r, c] = block.max(axis=(1, 2))
+            else:
+                out[:, r, c] = block.sum(axis=(1, 2)) / block[0].size
     return out.reshape(n, 25)
 
 
@@ -51,7 +55,7 @@ def reference_outputs(
     sizes = [spec.n_inputs, *spec.hidden, n_outputs or spec.n_outputs]
     outputs = []
     for p in range(p_count):
-        x = reference_inputs(spec.robot, observations[p * m : (p + 1) * m])
+        x = reference_inputs(spec.robot, observations[p * m : (p + 1) * m], spec.pooling)
         vector = params[p].astype(np.float32).astype(np.float64)
         offset = 0
         for layer, (d_in, d_out) in enumerate(itertools.pairwise(sizes)):
@@ -114,6 +118,36 @@ def test_forward_pass_matches_a_plain_reference(robot, hidden, activation, p_cou
             assert actions.dtype == np.float64 and actions.shape == (p_count * m, 2)
             np.testing.assert_allclose(actions, np.tanh(expected), atol=1e-4)
             assert np.abs(actions).max() <= 1.0
+
+
+@pytest.mark.parametrize("robot", ["CD15", "CD11", "CC7"])  # 11 and 7: blocks of unequal sizes
+def test_max_pooling_reads_each_block_s_brightest_pixel(robot):
+    rng = np.random.default_rng(21)
+    spec = NetworkSpec(robot, (6,), pooling="max")
+    assert spec.n_inputs == 25 and spec.to_dict()["pooling"] == "max"
+    params = spec.initial_params(rng, 3) + rng.normal(0, 0.3, (3, spec.n_params))
+    observations = random_observations(spec.robot, 3 * 70, rng)
+    expected_inputs = reference_inputs(spec.robot, observations, "max")
+    np.testing.assert_allclose(spec.encode(observations), expected_inputs, rtol=1e-6)
+    mean_inputs = NetworkSpec(robot, (6,)).encode(observations)
+    assert not np.allclose(mean_inputs, expected_inputs)  # the option is not a no-op
+    expected = reference_outputs(spec, params, observations)
+    for parallel in (False, True):
+        values = spec.population(params, parallel=parallel).forward(observations)
+        np.testing.assert_allclose(values, expected, rtol=1e-4, atol=1e-4)
+
+
+def test_max_pooling_sees_a_stroke_at_its_lightness_whatever_its_width():
+    # why "max": a thin and a thick stroke of one gray level pool to one value,
+    # while the block means differ by the width (and so mistake width for lightness)
+    thin, thick = np.zeros((1, 15, 15), np.uint8), np.zeros((1, 15, 15), np.uint8)
+    thin[0, 7, 3:12] = 128
+    thick[0, 6:9, 3:12] = 128
+    for pooling, same in (("max", True), ("mean", False)):
+        spec = NetworkSpec("H15", pooling=pooling)
+        a, b = spec.encode(thin), spec.encode(thick)
+        assert np.array_equal(a, b) == same
+    assert NetworkSpec("H15", pooling="max").encode(thin).max() == np.float32(128 / 255)
 
 
 def test_population_equals_its_individuals_and_threads_do_not_matter():
@@ -214,7 +248,12 @@ def test_spec_is_canonical_and_round_trips():
     assert NetworkSpec("D").robot == "DD" and NetworkSpec("DD").pool is None
     with pytest.raises(ValueError, match="takes no vision size"):
         NetworkSpec("D11")
-    for item in (spec, NetworkSpec("DD"), NetworkSpec("CC11", (4,), "sigmoid", pool=3)):
+    for item in (
+        spec,
+        NetworkSpec("DD"),
+        NetworkSpec("CC11", (4,), "sigmoid", pool=3),
+        NetworkSpec("H15", (8,), pooling="max"),
+    ):
         data = json.loads(json.dumps(item.to_dict()))
         assert NetworkSpec.from_dict(data) == item
         assert NetworkSpec.from_dict({"type": "mlp", **data}) == item
@@ -235,6 +274,9 @@ def test_spec_is_canonical_and_round_trips():
         ({"robot": "H15", "pool": 0}, "0"),
         ({"robot": "H15", "pool": 16}, "16"),
         ({"robot": "DD", "pool": 5}, "pool 5"),
+        ({"robot": "H15", "pooling": "median"}, "pooling 'median' is not one of mean, max"),
+        ({"robot": "DD", "pooling": "max"}, "robot DD has no image to pool"),
+        ({"robot": "H15", "filters": 2, "pooling": "max"}, "convolves its image"),
     ],
 )
 def test_bad_specs_are_refused(kwargs, message):

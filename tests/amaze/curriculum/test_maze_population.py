@@ -23,6 +23,8 @@ from amaze.curriculum.maze_population import (
     staleness_weights,
 )
 from amaze.curriculum.validation import reserved_seeds
+from amaze.maze.arrow_styles import write_sign_styles
+from amaze.maze.signs import clear_custom_signs, register_custom_signs
 from amaze.maze.spec import MazeSpec
 from amaze.runs.checkpoint import StateCodec, curriculum_classes, read_checkpoint, write_checkpoint
 from tests.run_folders import retagged_checkpoint
@@ -334,3 +336,31 @@ def test_replay_copes_with_weights_that_underflow() -> None:
     assert np.count_nonzero(population.replay_distribution()) < 8
     batch = population.propose()
     assert len(batch) == 8 and len({b.maze for b in batch}) == 8
+
+
+def test_sign_styles_join_the_shapes_family_mazes_are_drawn_in(tmp_path: Path) -> None:
+    clear_custom_signs()
+    try:
+        # the option's names need no registered image to be checked: the run draws them
+        population = _population(capacity=16, batch=4, shapes=["star"], sign_styles=2)
+        assert population.config.drawn_shapes == ("star", "arrowv0", "arrowv1")
+        assert _population(sign_styles=1).config.drawn_shapes == ("arrowv0",)
+        assert _population().config.drawn_shapes is None
+        write_sign_styles(tmp_path, 2, 0)
+        register_custom_signs(tmp_path / "training")
+        seen = set()
+        for k in range(12):
+            batch = population.propose()
+            for item in batch:
+                spec = MazeSpec.from_string(item.maze)
+                if item.origin == "family":
+                    seen |= {sign.shape for sign in (*spec.clue, *spec.lure, *spec.trap)}
+            population.update(batch, [_result((k + i) % 5 / 4) for i in range(len(batch))])
+        assert seen == {"star", "arrowv0", "arrowv1"}
+        with pytest.raises(CoevolutionError, match=r"\['arrowv1'\] are among the 2 sign_styles"):
+            _population(shapes=["arrowv1"], sign_styles=2)
+    finally:
+        clear_custom_signs()
+    for bad in (-1, 257, 1.5):
+        with pytest.raises(CoevolutionError, match="sign_styles"):
+            _population(sign_styles=bad)

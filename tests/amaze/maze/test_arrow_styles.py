@@ -200,7 +200,8 @@ def test_a_written_style_is_usable_in_a_maze_and_seen_by_a_robot(tmp_path):
             assert image.shape == (15, 15)
             frame = sign_frames(p.sign, 13)[int(p.direction)]
             np.testing.assert_allclose(image[1:-1, 1:-1], frame)  # the sign, inside the walls
-            assert frame.max() > 0.5
+            # drawn at the sign's lightness: the clue at 1, the harpoon lures at a quarter
+            assert 0.8 * p.sign.value < frame.max() <= p.sign.value + 1 / 255
 
 
 # -----------------------------------------------------------------------------
@@ -223,6 +224,8 @@ def test_cli_writes_the_styles(tmp_path, capsys):
     assert "arrowv0 arrowv1 arrowv2" in out and "chevron harpoon outline" in out
     assert f"--signs {tmp_path / 's' / 'training'}" in out
     assert '{"coevolution": {"shapes": ["arrow", "arrowv0", "arrowv1", "arrowv2"]}}' in out
+    drawn = '{"coevolution": {"shapes": ["arrow"], "sign_styles": 3, "sign_styles_seed": 0}}'
+    assert drawn in out
     default = tmp_path / "d"
     assert run_cli(capsys, "draw-signs", str(default))[0] == 0
     assert len(list((default / "training").glob("*.png"))) == 16

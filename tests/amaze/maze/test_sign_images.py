@@ -218,7 +218,7 @@ def custom(tmp_path):
         path = tmp_path / f"{name}.png"
         image.save(path)
         register_custom_signs(path)
-        return Sign(name, 0.5)
+        return Sign(name, 1.0)  # lightness 1: the image as it is
 
     clear_custom_signs()
     clear_cache()
@@ -256,11 +256,19 @@ def test_custom_four_frame_image(custom):
     assert (frames[0][0] == 255).all() and (frames[0][-1] == 40).all()
 
 
-def test_custom_image_ignores_lightness(custom):
-    sign = custom("testgray", Image.fromarray(np.full((12, 12), 77, dtype=np.uint8)))
-    dim = Sign("testgray", 0.1)
-    np.testing.assert_array_equal(sign_frames_u8(sign, 9), sign_frames_u8(dim, 9))
-    assert (sign_frames_u8(sign, 9) == 77).all()
+def test_custom_image_takes_the_lightness(custom):
+    # The reference ignores it: clues, lures and traps of one custom shape would look alike.
+    picture = np.array([[0, 1, 77, 128, 200, 255]] * 6, dtype=np.uint8)
+    sign = custom("testgray", Image.fromarray(picture))
+    full = Sign("testgray", 1.0)
+    np.testing.assert_array_equal(sign_frames_u8(full, 6)[0], picture)
+    for value in (0.1, 0.25, 0.5, 0.75):
+        gray = pen_gray_level(value)
+        expected = np.floor(picture.astype(np.float64) * gray / 255 + 0.5).astype(np.uint8)
+        np.testing.assert_array_equal(sign_frames_u8(Sign("testgray", value), 6)[0], expected)
+    assert sign_frames_u8(Sign("testgray", 0.1), 6)[0, 0, 2] == 8  # 77 * 26 / 255 = 7.85
+    dim = sign_frames(Sign("testgray", 0.25), 6)
+    assert dim.max() < sign_frames(sign, 6).max() / 1.9
 
 
 def test_custom_colour_and_transparency_become_gray(custom):

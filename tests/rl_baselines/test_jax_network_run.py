@@ -57,6 +57,7 @@ def test_a_direct_run_with_a_network_hands_over_an_evolved_agents_file(
         "symmetry": "rotations",
         "filters": 0,
         "stride": None,
+        "pooling": "mean",
     }
     assert (out / "checkpoints" / "champion.npz").is_file()
     arrays, metadata = read_agent(out / "agent.npz")

@@ -330,9 +330,10 @@ class CoevolutionRun(Run):
         """Draw the ``sign_styles`` option's arrow styles into ``signs/`` and register them.
 
         ``signs/training`` holds the styles (``arrowv0.png`` ...), ``signs/held-out``
-        the drawings never trained on, as ``amaze draw-signs`` writes them; the
-        same config draws the same images, so a resumed run (or a process that
-        plays its agent) registers them again from the folder or redraws them.
+        the drawings never trained on, as ``amaze draw-signs`` writes them. A
+        resumed run draws them again (the same config draws the same images)
+        and registers them; a process that only plays the agent on the suite
+        needs none of them (the suite's signs are arrows).
         """
         options = self.options
         if not options.sign_styles:

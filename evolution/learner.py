@@ -352,7 +352,7 @@ class EvolutionLearner:
 
     def _converged(self, result: PopulationResult) -> bool:
         """True if an individual played every episode at the fitness measure's maximum."""
-        if self.fitness == "success_rate":
+        if self.fitness in ("success_rate", "path_progress"):  # progress 1: the goal
             reached = result.per_episode("success").astype(bool)
         else:
             reached = result.per_episode(self.fitness) >= OPTIMAL

@@ -57,7 +57,11 @@ __all__ = [
 ]
 
 #: Fitness measures: the mean over an individual's episodes of one of these.
-FITNESS: tuple[str, ...] = ("normalized_reward", "success_rate", "pretty_reward")
+#: ``path_progress`` is how far along its maze's solution an episode got (1 on
+#: success, :attr:`~amaze.evaluation.policy.EpisodeResults.path_progress`): unlike
+#: the rewards it tells apart agents that move toward the goal from those that stand
+#: still, on mazes where none reaches it.
+FITNESS: tuple[str, ...] = ("normalized_reward", "success_rate", "pretty_reward", "path_progress")
 #: Fitness names of configs written before R̄ and the success rate had one name.
 OLD_FITNESS = {"paper_reward": "normalized_reward", "success": "success_rate"}
 
@@ -130,7 +134,10 @@ class PopulationResult:
             raise EvolutionConfigError("this result does not hold its episodes")
         if name not in {f.name for f in fields(EpisodeResults)}:
             raise EvolutionConfigError(f"episodes have no field {name!r}")
-        return getattr(self.episodes, name).reshape(len(self), -1)
+        values = getattr(self.episodes, name)
+        if values is None:
+            raise EvolutionConfigError(f"these episodes did not record {name!r}")
+        return values.reshape(len(self), -1)
 
     @property
     def best(self) -> int:
@@ -152,7 +159,7 @@ class PopulationResult:
         if all(r.episodes is not None for r in results):
             episodes = EpisodeResults(
                 **{
-                    f.name: np.concatenate([getattr(r.episodes, f.name) for r in results])
+                    f.name: _joined([getattr(r.episodes, f.name) for r in results])
                     for f in fields(EpisodeResults)
                 }
             )
@@ -165,6 +172,13 @@ class PopulationResult:
             seconds=float(sum(r.seconds for r in results) if seconds is None else seconds),
             episodes=episodes,
         )
+
+
+def _joined(parts: list[np.ndarray | None]) -> np.ndarray | None:
+    """The parts of one episode field joined in order; None when any part lacks it."""
+    if any(part is None for part in parts):
+        return None
+    return np.concatenate(parts)
 
 
 class EvaluationBackend(Protocol):
@@ -252,15 +266,20 @@ class PopulationEvaluator:
             )
         engine = self.engine(n_policies)
         started = time.perf_counter()
-        episodes = run_episodes(engine, policy)
+        progress = self.fitness == "path_progress"
+        episodes = run_episodes(engine, policy, path_progress=progress)
         seconds = time.perf_counter() - started
         shape = (n_policies, self.n_episodes)
         success = episodes.success.reshape(shape).mean(axis=1)
         paper = episodes.normalized_reward.reshape(shape).mean(axis=1)
         pretty = episodes.pretty_reward.reshape(shape).mean(axis=1)
-        fitness = {"normalized_reward": paper, "success_rate": success, "pretty_reward": pretty}
+        if progress:
+            fitness = episodes.path_progress.reshape(shape).mean(axis=1)
+        else:
+            fitness = {"normalized_reward": paper, "success_rate": success, "pretty_reward": pretty}
+            fitness = fitness[self.fitness].copy()
         return PopulationResult(
-            fitness=fitness[self.fitness].copy(),
+            fitness=fitness,
             success_rate=success,
             normalized_reward=paper,
             pretty_reward=pretty,

@@ -198,7 +198,9 @@ class EvolutionRun(GenerationLoop):
         return (
             f"{summary['generations']} generations,"
             f" {summary['policy_steps_per_second'] / 1e6:.2f} M policy-steps/s;"
-            f" champion fitness {summary['champion_fitness']:.3f}; {super().headline(summary)}"
+            f" champion fitness {summary['champion_fitness']:.3f}"
+            f" ({summary.get('fitness_measure', 'normalized_reward')});"
+            f" {super().headline(summary)}"
         )
 
     # -- evolution's own ----------------------------------------------------------

@@ -428,9 +428,14 @@ def _cmd_interpolate(args: argparse.Namespace) -> None:
 
 
 def _cmd_draw_signs(args: argparse.Namespace) -> None:
-    from amaze.maze.arrow_styles import HELD_OUT_FOLDER, TRAINING_FOLDER, write_sign_styles
+    from amaze.maze.arrow_styles import (
+        DEFAULT_HEADS,
+        HELD_OUT_FOLDER,
+        TRAINING_FOLDER,
+        write_sign_styles,
+    )
 
-    groups = write_sign_styles(args.out, args.training, args.seed)
+    groups = write_sign_styles(args.out, args.training, args.seed, args.heads)
     training, held_out = groups[TRAINING_FOLDER], groups[HELD_OUT_FOLDER]
     folder = Path(args.out)
     print(f"{len(training)} training styles (seed {args.seed}) -> {folder / TRAINING_FOLDER}:")
@@ -444,6 +449,7 @@ def _cmd_draw_signs(args: argparse.Namespace) -> None:
                 "shapes": ["arrow"],
                 "sign_styles": len(training),
                 "sign_styles_seed": args.seed,
+                **({} if args.heads == DEFAULT_HEADS else {"sign_styles_heads": list(args.heads)}),
             }
         }
     )
@@ -668,6 +674,13 @@ def _add_draw_signs(commands: argparse._SubParsersAction) -> None:
         help="number of training styles, 1 to 256 (16)",
     )
     draw.add_argument("--seed", type=int, default=0, help="seed of the training styles (0)")
+    draw.add_argument(
+        "--heads",
+        type=lambda text: tuple(text.split(",")),
+        default=("filled", "open"),
+        metavar="A,B",
+        help="heads the training styles may have: filled, open, hollow (filled,open)",
+    )
     draw.set_defaults(run=_cmd_draw_signs)
 
 

@@ -84,7 +84,12 @@ from amaze.curriculum.replay import (
     staleness_weights,
 )
 from amaze.curriculum.validation import reserved_seeds, unseen_mazes
-from amaze.maze.arrow_styles import MAX_TRAINING_STYLES, TRAINING_PREFIX
+from amaze.maze.arrow_styles import (
+    DEFAULT_HEADS,
+    MAX_TRAINING_STYLES,
+    TRAINING_PREFIX,
+    check_heads,
+)
 from amaze.maze.maze import Maze, as_mazes, rotations
 from amaze.maze.signs import Sign, SignError
 from amaze.maze.spec import MAX_SIZE, MIN_SIZE, MazeSpec
@@ -151,9 +156,11 @@ class MazePopulationConfig:
     the shapes ``arrowv0`` ... that ``amaze draw-signs`` writes) to those
     shapes: the run draws them into its folder and registers them itself, so
     that its config alone says what it trained on, and it resumes without
-    setup (:attr:`drawn_shapes`). The run's validation mazes take the shapes
-    in turn (:attr:`~amaze.runs.coevolution.CoevolutionRun.validation_mazes`);
-    the unseen mazes keep the target's. Robots that read sign values, not
+    setup (:attr:`drawn_shapes`); ``sign_styles_heads`` lists the heads they
+    may have (:data:`amaze.maze.arrow_styles.HEADS`; by default filled and
+    open). The run's validation mazes take the shapes in turn
+    (:attr:`~amaze.runs.coevolution.CoevolutionRun.validation_mazes`); the
+    unseen mazes keep the target's. Robots that read sign values, not
     images (DD), refuse both options.
     """
 
@@ -173,6 +180,7 @@ class MazePopulationConfig:
     shapes: tuple[str, ...] | None = None
     sign_styles: int = 0
     sign_styles_seed: int = 0
+    sign_styles_heads: tuple[str, ...] = DEFAULT_HEADS
 
     def __post_init__(self) -> None:
         def integer(name: str, low: int, high: int) -> None:
@@ -216,6 +224,15 @@ class MazePopulationConfig:
                     f"shapes {clash!r} are among the {self.sign_styles} sign_styles the run"
                     " draws itself (list them once: leave them out of shapes)"
                 )
+        try:
+            heads = check_heads(self.sign_styles_heads)
+        except SignError as error:
+            raise CoevolutionError(f"sign_styles_heads: {error}") from None
+        object.__setattr__(self, "sign_styles_heads", heads)
+        if heads != DEFAULT_HEADS and not self.sign_styles:
+            raise CoevolutionError(
+                f"sign_styles_heads {list(heads)!r} needs sign_styles > 0: no style is drawn"
+            )
         if self.capacity < self.batch:
             raise CoevolutionError(
                 f"capacity {self.capacity} is smaller than batch {self.batch}: a full"
@@ -231,6 +248,7 @@ class MazePopulationConfig:
         data = dataclasses.asdict(self)
         if self.shapes is not None:
             data["shapes"] = list(self.shapes)
+        data["sign_styles_heads"] = list(self.sign_styles_heads)
         return data
 
     @property

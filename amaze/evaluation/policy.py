@@ -47,6 +47,7 @@ __all__ = [
     "EpisodeResults",
     "Policy",
     "as_policy_observations",
+    "path_positions",
     "record_episode",
     "run_episodes",
 ]
@@ -99,6 +100,9 @@ class EpisodeResults:
 
     ``cumulative_reward`` is the reference's raw return; ``pretty_reward`` its
     normalisation to [-1, 1]; ``normalized_reward`` the paper's R̄ (1 for an optimal run).
+    ``path_progress`` (when :func:`run_episodes` was asked for it, else None): how far
+    along its maze's solution the agent got, the furthest solution cell it stood in as a
+    share of the path (0 at the start cell, 1 on success); see :func:`path_positions`.
     """
 
     maze_index: np.ndarray
@@ -110,12 +114,42 @@ class EpisodeResults:
     cumulative_reward: np.ndarray
     pretty_reward: np.ndarray
     normalized_reward: np.ndarray
+    path_progress: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.success.shape[0])
 
 
-def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None) -> EpisodeResults:
+def path_positions(engine: BatchEngine) -> np.ndarray:
+    """Per cell of ``engine``'s compiled mazes, its place on its maze's solution (-1 off it).
+
+    float64 over the global cells of :attr:`BatchEngine.tables` (maze ``m``'s cell
+    ``(i, j)`` at ``cell_offset[m] + i * height[m] + j``): the solution's ``k``-th
+    cell holds ``k / (l - 1)``, so the start holds 0 and the goal 1.
+    """
+    tables = engine.tables
+    positions = np.full(tables.n_cells, -1.0)
+    for m, maze in enumerate(engine.mazes):
+        solution = np.asarray(maze.solution, dtype=np.int64).reshape(-1, 2)
+        cells = tables.cell_offset[m] + solution[:, 0] * tables.height[m] + solution[:, 1]
+        positions[cells] = np.arange(len(solution)) / max(1, len(solution) - 1)
+    return positions
+
+
+def _agent_cells(engine: BatchEngine) -> np.ndarray:
+    """Every agent's cell as a global cell index of the engine's tables."""
+    tables, maze = engine.tables, engine.assignment
+    cells = engine.cells
+    return tables.cell_offset[maze] + cells[:, 0] * tables.height[maze] + cells[:, 1]
+
+
+def run_episodes(
+    engine: BatchEngine,
+    policy: Any,
+    max_steps: int | None = None,
+    *,
+    path_progress: bool = False,
+) -> EpisodeResults:
     """Reset ``engine`` and play until every agent has finished one episode.
 
     The engine must auto-reset (its default): agents that finish early go on
@@ -124,6 +158,12 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
     episode cannot outlast its deadline anyway); agents still running then
     raise an error rather than being silently scored. A policy's ``retire``
     hook, if any, hears of each agent whose scored episode has ended.
+
+    ``path_progress=True`` also records how far along its maze's solution each
+    agent got (:attr:`EpisodeResults.path_progress`): its cell is looked up after
+    every step, a cost the other figures do not pay. The cell an agent reaches
+    in the step that ends its episode is not looked up (the engine has already
+    put it back at the start), except that success counts as the goal: 1.
     """
     if not engine.auto_reset:
         raise ValueError("run_episodes needs an engine built with auto_reset=True")
@@ -145,6 +185,8 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
             ("cumulative_reward", np.float64),
         )
     }
+    progress = np.zeros(n) if path_progress else None
+    positions = path_positions(engine) if path_progress else None
     steps = 0
     while not finished.all():
         if max_steps is not None and steps >= max_steps:
@@ -152,6 +194,9 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
         result = engine.step(_actions(policy, observations, engine))
         observations = result.observations
         steps += 1
+        if progress is not None:  # an agent whose episode ended stands at its start: 0
+            reached = np.maximum(positions[_agent_cells(engine)], 0.0)
+            np.maximum(progress, np.where(finished, 0.0, reached), out=progress)
         episodes = result.episodes
         if len(episodes):
             first = ~finished[episodes.agents]
@@ -173,10 +218,13 @@ def run_episodes(engine: BatchEngine, policy: Any, max_steps: int | None = None)
         deadline_factor=engine.deadline_factor,
         **fields,
     )
+    if progress is not None:
+        progress[fields["success"]] = 1.0
     return EpisodeResults(
         maze_index=engine.assignment,
         pretty_reward=scored.pretty_rewards(),
         normalized_reward=scored.normalized_rewards(),
+        path_progress=progress,
         **fields,
     )
 

@@ -7,8 +7,8 @@ and tested on drawings kept out of training. This module draws both, as custom
 sign images (:func:`amaze.maze.signs.register_custom_signs`):
 
 Training styles
-    :class:`ArrowStyle` holds the parameters of one arrow (shaft, head filled or
-    open, scale, pixel noise), :func:`draw_arrow` draws it and
+    :class:`ArrowStyle` holds the parameters of one arrow (shaft, head filled,
+    open or hollow, scale, pixel noise), :func:`draw_arrow` draws it and
     :func:`training_styles` draws styles from fixed ranges, from a seed. Every
     style keeps a shaft at least :data:`MIN_SHAFT` (0.3) of the image long, so
     none is a bare head, a triangle or a chevron.
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,6 +79,11 @@ RANGES: dict[str, tuple[float, float]] = {
 
 #: A head is at least this many times as wide as the shaft (so that it stands out).
 HEAD_TO_SHAFT = 2.0
+#: How a head is drawn: a filled triangle, an open V of two strokes, or the
+#: triangle's closed contour (hollow; the shaft stays filled).
+HEADS = ("filled", "open", "hollow")
+#: The heads :func:`training_styles` draws by default (the styles it has always drawn).
+DEFAULT_HEADS = ("filled", "open")
 
 _SUPERSAMPLE = 4  # drawn at 4 x the side, then averaged: smooth edges, sub-pixel widths count
 
@@ -88,8 +93,9 @@ class ArrowStyle:
     """How one arrow is drawn, pointing east (lengths and widths: shares of the image side).
 
     The arrow is a shaft (``shaft_length`` long, ``shaft_width`` thick) ending in
-    a head ``head_length`` long and ``head_width`` across, filled (a triangle) or
-    open (a V of two strokes as thick as the shaft), centred, then scaled by
+    a head ``head_length`` long and ``head_width`` across, ``head`` one of
+    :data:`HEADS` (a filled triangle, an open V of two strokes as thick as the shaft,
+    or the triangle's contour drawn with such a stroke), centred, then scaled by
     ``scale`` about the centre. ``noise`` adds Gaussian noise of that standard
     deviation (a share of full white) to every pixel's gray level, drawn from
     ``noise_seed``: the same style always gives the same image. Every field must
@@ -102,7 +108,7 @@ class ArrowStyle:
     shaft_width: float = 0.1
     head_length: float = 0.3
     head_width: float = 0.5
-    filled: bool = True
+    head: str = "filled"
     scale: float = 1.0
     noise: float = 0.0
     noise_seed: int = 0
@@ -122,9 +128,8 @@ class ArrowStyle:
                 f"arrow style head_width {self.head_width!r} is less than {HEAD_TO_SHAFT} x its"
                 f" shaft_width {self.shaft_width!r}: the head would not stand out of the shaft"
             )
-        if not isinstance(self.filled, bool | np.bool_):
-            raise SignError(f"arrow style filled {self.filled!r} is not True or False")
-        object.__setattr__(self, "filled", bool(self.filled))
+        if not isinstance(self.head, str) or self.head not in HEADS:
+            raise SignError(f"arrow style head {self.head!r} is not one of {', '.join(HEADS)}")
         seed = check_integer("arrow style noise_seed", self.noise_seed, minimum=0, error=SignError)
         object.__setattr__(self, "noise_seed", seed)
 
@@ -140,8 +145,9 @@ def draw_arrow(style: ArrowStyle, size: int = IMAGE_SIZE) -> Image.Image:
     size = _check_size(size)
     s = style.scale
     half_shaft, half_head = style.shaft_width / 2, style.head_width / 2
-    # An open head's round apex reaches half a stroke past its vertex: centre the ink.
-    reach = style.shaft_length + style.head_length + (0.0 if style.filled else half_shaft)
+    # A stroked head's round apex reaches half a stroke past its vertex: centre the ink.
+    filled = style.head == "filled"
+    reach = style.shaft_length + style.head_length + (0.0 if filled else half_shaft)
     start = 0.5 - reach / 2
     base = start + style.shaft_length
     tip = base + style.head_length
@@ -151,15 +157,18 @@ def draw_arrow(style: ArrowStyle, size: int = IMAGE_SIZE) -> Image.Image:
         def scaled(x: float, y: float) -> tuple[float, float]:
             return at(0.5 + (x - 0.5) * s, 0.5 + (y - 0.5) * s)
 
-        if style.filled:
+        head = [(base, 0.5 - half_head), (tip, 0.5), (base, 0.5 + half_head)]
+        stroke = _pixels(style.shaft_width * s, at)
+        if filled:
             shaft_end = base + min(half_shaft, style.head_length / 2)  # overlap: no seam
-            head = [(base, 0.5 - half_head), (tip, 0.5), (base, 0.5 + half_head)]
             draw.polygon([scaled(x, y) for x, y in head], fill=255)
-        else:
-            arms = [(base, 0.5 - half_head), (tip, 0.5), (base, 0.5 + half_head)]
-            stroke = _pixels(style.shaft_width * s, at)
-            draw.line([scaled(x, y) for x, y in arms], fill=255, width=stroke, joint="curve")
+        elif style.head == "open":
+            draw.line([scaled(x, y) for x, y in head], fill=255, width=stroke, joint="curve")
             shaft_end = tip
+        else:  # hollow: round the triangle past its first corner again, a joint like the others
+            contour = [*head, *head[:2]]
+            draw.line([scaled(x, y) for x, y in contour], fill=255, width=stroke, joint="curve")
+            shaft_end = base
         shaft = [
             (start, 0.5 - half_shaft),
             (shaft_end, 0.5 - half_shaft),
@@ -175,19 +184,24 @@ def draw_arrow(style: ArrowStyle, size: int = IMAGE_SIZE) -> Image.Image:
     return _white(np.clip(np.rint(alpha), 0, 255).astype(np.uint8))
 
 
-def training_styles(count: int, seed: int) -> list[ArrowStyle]:
+def training_styles(
+    count: int, seed: int, heads: Sequence[str] = DEFAULT_HEADS
+) -> list[ArrowStyle]:
     """``count`` arrow styles (1 to :data:`MAX_TRAINING_STYLES`) drawn from :data:`RANGES`.
 
     Each field uniform in its range (the head's width in the part of its range
-    that :data:`HEAD_TO_SHAFT` leaves), the head filled or open with even odds, and
-    each style's noise seed drawn too, all from ``np.random.default_rng(seed)``:
-    the same ``(count, seed)`` give the same styles, and a longer list starts
-    with a shorter one's styles.
+    that :data:`HEAD_TO_SHAFT` leaves), the head one of ``heads`` (of
+    :data:`HEADS`, each as likely), and each style's noise seed drawn too, all
+    from ``np.random.default_rng(seed)``: the same ``(count, seed, heads)`` give
+    the same styles, and a longer list starts with a shorter one's styles. Only
+    the heads depend on ``heads``: the same seed draws the same shafts, sizes and
+    noise whichever heads are allowed.
     """
     count = check_integer(
         "training style count", count, minimum=1, maximum=MAX_TRAINING_STYLES, error=SignError
     )
     seed = check_integer("training style seed", seed, minimum=0, error=SignError)
+    heads = check_heads(heads)
     rng = np.random.default_rng(seed)
     styles = []
     for _ in range(count):
@@ -195,10 +209,25 @@ def training_styles(count: int, seed: int) -> list[ArrowStyle]:
         low, high = RANGES["head_width"]  # redrawn within what the shaft allows
         low = max(low, HEAD_TO_SHAFT * values["shaft_width"])
         values["head_width"] = float(low + (high - low) * rng.random())
-        filled = bool(rng.random() < 0.5)
+        head = heads[min(len(heads) - 1, int(rng.random() * len(heads)))]
         noise_seed = int(rng.integers(2**32))
-        styles.append(ArrowStyle(**values, filled=filled, noise_seed=noise_seed))
+        styles.append(ArrowStyle(**values, head=head, noise_seed=noise_seed))
     return styles
+
+
+def check_heads(heads: object) -> tuple[str, ...]:
+    """``heads`` as a tuple of distinct :data:`HEADS` names, at least one.
+
+    Anything else raises :class:`SignError` naming the bad value.
+    """
+    if isinstance(heads, str) or not isinstance(heads, Sequence) or not heads:
+        raise SignError(f"heads {heads!r} is not a non-empty list of {', '.join(HEADS)}")
+    for head in heads:
+        if head not in HEADS:
+            raise SignError(f"head {head!r} is not one of {', '.join(HEADS)}")
+    if len(set(heads)) < len(heads):
+        raise SignError(f"heads {list(heads)!r} lists a head twice")
+    return tuple(heads)
 
 
 # -----------------------------------------------------------------------------
@@ -261,11 +290,13 @@ HELD_OUT_STYLES: dict[str, Callable[[int], Image.Image]] = {
 # Files and directions
 
 
-def write_sign_styles(folder: str | os.PathLike, count: int, seed: int) -> dict[str, list[str]]:
+def write_sign_styles(
+    folder: str | os.PathLike, count: int, seed: int, heads: Sequence[str] = DEFAULT_HEADS
+) -> dict[str, list[str]]:
     """Write the sign images: ``count`` training styles and the held-out styles, as PNG files.
 
     ``folder/training/arrowv0.png`` ... ``arrowv{count-1}.png`` are
-    :func:`training_styles` ``(count, seed)``; ``folder/held-out/chevron.png``,
+    :func:`training_styles` ``(count, seed, heads)``; ``folder/held-out/chevron.png``,
     ``harpoon.png`` and ``outline.png`` the :data:`HELD_OUT_STYLES`, all
     :data:`IMAGE_SIZE` pixels square. Folders are created; files of the same
     names are overwritten. Registering a folder registers every PNG in it, so a
@@ -273,7 +304,7 @@ def write_sign_styles(folder: str | os.PathLike, count: int, seed: int) -> dict[
     before anything is written: that image would join the group unnoticed.
     Returns the shape names of each group: ``{"training": [...], "held-out": [...]}``.
     """
-    styles = training_styles(count, seed)
+    styles = training_styles(count, seed, heads)
     root = Path(folder).expanduser()
     groups: dict[str, dict[str, Callable[[], Image.Image]]] = {
         TRAINING_FOLDER: {

@@ -341,7 +341,9 @@ class CoevolutionRun(Run):
         known_shapes()  # the environment's custom signs first: the run's styles win
         folder = self.out / SIGNS_FOLDER
         try:
-            write_sign_styles(folder, options.sign_styles, options.sign_styles_seed)
+            write_sign_styles(
+                folder, options.sign_styles, options.sign_styles_seed, options.sign_styles_heads
+            )
             register_custom_signs(folder / TRAINING_FOLDER)
         except (SignError, OSError) as problem:
             raise self.config.error(f"sign_styles: {one_line(problem)}") from None

@@ -286,6 +286,7 @@ def test_sign_styles_are_drawn_into_the_run_and_read_like_the_shapes(tmp_path: P
         "shapes": ["point"],
         "sign_styles": 2,
         "sign_styles_seed": 5,
+        "sign_styles_heads": ["hollow"],
     }
     config = {**CONFIG, "robot": "H15", "max_generations": 4, "coevolution": options}
     path = write_config(tmp_path, config)
@@ -295,7 +296,8 @@ def test_sign_styles_are_drawn_into_the_run_and_read_like_the_shapes(tmp_path: P
         assert main(["--config", str(path), "--out", str(out), "--no-progress"]) == 0
         drawn = sorted(p.name for p in (out / "signs" / "training").iterdir())
         assert drawn == ["arrowv0.png", "arrowv1.png"]
-        style = training_styles(2, 5)[1]
+        style = training_styles(2, 5, ("hollow",))[1]
+        assert style.head == "hollow"
         with Image.open(out / "signs" / "training" / "arrowv1.png") as image:
             assert np.array_equal(np.asarray(image), np.asarray(draw_arrow(style)))
         assert custom_sign_path("arrowv1") == (out / "signs" / "training" / "arrowv1.png").resolve()
@@ -307,6 +309,7 @@ def test_sign_styles_are_drawn_into_the_run_and_read_like_the_shapes(tmp_path: P
         assert shapes == [{"point"}, {"arrowv0"}, {"arrowv1"}, {"point"}]
         summary = json.loads((out / "summary.json").read_text())
         assert summary["coevolution"]["sign_styles"] == 2
+        assert summary["coevolution"]["sign_styles_heads"] == ["hollow"]
     finally:
         clear_custom_signs()
     with pytest.raises(EvolutionConfigError, match=r"sign_styles 2 have no effect for robot DD"):

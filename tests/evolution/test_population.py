@@ -205,6 +205,26 @@ def test_fitness_choices(evaluator):
     assert by_reward.best == int(np.argmax(by_reward.normalized_reward))
 
 
+def test_path_progress_fitness(evaluator):
+    rng = np.random.default_rng(2)
+    spec = NetworkSpec("DD", (4,))
+    population = spec.population(spec.initial_params(rng, 4) * 3)
+    progress = PopulationEvaluator(MAZES, "DD", rotations=True, fitness="path_progress")
+    result = progress.evaluate(population)
+    per_episode = result.per_episode("path_progress")
+    np.testing.assert_array_equal(result.fitness, per_episode.mean(axis=1))
+    assert ((per_episode >= 0) & (per_episode <= 1)).all()
+    np.testing.assert_array_equal(per_episode == 1, result.per_episode("success"))
+    by_reward = evaluator.evaluate(population)  # the same episodes, progress not looked up
+    np.testing.assert_array_equal(result.normalized_reward, by_reward.normalized_reward)
+    with pytest.raises(EvolutionConfigError, match="did not record 'path_progress'"):
+        by_reward.per_episode("path_progress")
+    parts = [progress.evaluate(population.subset(i)) for i in ([0, 1], [2, 3])]
+    joined = PopulationResult.concatenate(parts)
+    np.testing.assert_array_equal(joined.per_episode("path_progress"), per_episode)
+    assert PopulationResult.concatenate([parts[0], by_reward]).episodes.path_progress is None
+
+
 def test_image_robot_populations(evaluator):
     rng = np.random.default_rng(6)
     spec = NetworkSpec("H7", (6,))

@@ -364,3 +364,12 @@ def test_sign_styles_join_the_shapes_family_mazes_are_drawn_in(tmp_path: Path) -
     for bad in (-1, 257, 1.5):
         with pytest.raises(CoevolutionError, match="sign_styles"):
             _population(sign_styles=bad)
+    heads = MazePopulationConfig(sign_styles=2, sign_styles_heads=["open", "hollow"])
+    assert heads.sign_styles_heads == ("open", "hollow")
+    assert heads.to_dict()["sign_styles_heads"] == ["open", "hollow"]
+    assert MazePopulationConfig().to_dict()["sign_styles_heads"] == ["filled", "open"]
+    with pytest.raises(CoevolutionError, match=r"sign_styles_heads \['hollow'\] needs sign_styles"):
+        MazePopulationConfig(sign_styles_heads=["hollow"])
+    for bad, named in ((["round"], "'round'"), ([], r"\[\]"), ("hollow", "'hollow'")):
+        with pytest.raises(CoevolutionError, match=f"sign_styles_heads: .*{named}"):
+            MazePopulationConfig(sign_styles=2, sign_styles_heads=bad)

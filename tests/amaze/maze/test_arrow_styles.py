@@ -13,6 +13,7 @@ from amaze.agents.observations import cell_image
 from amaze.cli.main import main
 from amaze.errors import SignError
 from amaze.maze.arrow_styles import (
+    HEADS,
     HELD_OUT_STYLES,
     MIN_SHAFT,
     ArrowStyle,
@@ -89,7 +90,7 @@ def test_noise_comes_from_the_style_seed():
 
 def test_every_training_style_is_a_clear_arrow():
     styles = training_styles(256, 0)
-    assert {s.filled for s in styles} == {True, False}
+    assert {s.head for s in styles} == {"filled", "open"}
     for style in styles:
         assert style.scale * style.shaft_length >= MIN_SHAFT - 1e-9
         assert style.head_width >= 2 * style.shaft_width
@@ -98,6 +99,25 @@ def test_every_training_style_is_a_clear_arrow():
         heights = (gray(image) > 0.5).sum(axis=0)  # lit pixels of each column
         # The head, wider than the shaft, is in the east half: the arrow points east.
         assert heights[32:].max() > 1.5 * heights[:32].max() > 0
+
+
+def test_hollow_heads_are_drawn_only_when_asked_for_and_keep_the_rest_of_the_style():
+    plain, hollow = training_styles(64, 3), training_styles(64, 3, HEADS)
+    assert {s.head for s in hollow} == set(HEADS)
+    for a, b in zip(plain, hollow, strict=True):  # the same draws but the heads
+        assert dataclasses.replace(a, head=b.head) == b
+    assert {s.head for s in training_styles(32, 3, ("hollow",))} == {"hollow"}
+
+
+def test_a_hollow_head_is_the_contour_of_the_filled_one():
+    filled, hollow = ArrowStyle(head_width=0.6), ArrowStyle(head="hollow", head_width=0.6)
+    solid, ring = gray(draw_arrow(filled, 256)), gray(draw_arrow(hollow, 256))
+    # Inside the head (its base at x = 147 px, its tip at 224, the shaft's line at
+    # y = 115 to 141), clear of the strokes: the filled head is lit there, the hollow dark.
+    inside = (slice(96, 106), slice(166, 174))
+    assert solid[inside].min() > 0.9 and ring[inside].max() < 0.1
+    heights = (ring > 0.5).sum(axis=0)
+    assert heights[32:].max() > 1.5 * heights[:32].max() > 0  # still an arrow pointing east
 
 
 @pytest.mark.parametrize("name", sorted(HELD_OUT_STYLES))
@@ -119,7 +139,11 @@ def test_held_out_drawings_are_square_white_on_transparent(name):
         (lambda: ArrowStyle(shaft_length=0.2), "0.2"),
         (lambda: ArrowStyle(noise=float("nan")), "nan"),
         (lambda: ArrowStyle(shaft_width=0.16, head_width=0.3), "0.3"),
-        (lambda: ArrowStyle(filled="yes"), "'yes'"),
+        (lambda: ArrowStyle(head="yes"), "'yes'"),
+        (lambda: training_styles(4, 1, heads=("star",)), "'star'"),
+        (lambda: training_styles(4, 1, heads=()), "()"),
+        (lambda: training_styles(4, 1, heads="open"), "'open'"),
+        (lambda: training_styles(4, 1, heads=("open", "open")), "twice"),
         (lambda: draw_arrow(ArrowStyle(), 4), "4"),
         (lambda: HELD_OUT_STYLES["chevron"](2000), "2000"),
     ],
@@ -239,3 +263,17 @@ def test_cli_refuses_a_bad_count(tmp_path, capsys, count):
     assert count in err and "Traceback" not in err
     assert out == ""
     assert not (tmp_path / "s").exists()
+
+
+def test_cli_draws_the_heads_asked_for(tmp_path, capsys):
+    status, out, _ = run_cli(
+        capsys, "draw-signs", str(tmp_path / "h"), "--training", "2", "--heads", "hollow,open"
+    )
+    assert status == 0
+    assert '"sign_styles_heads": ["hollow", "open"]' in out
+    style = training_styles(2, 0, ("hollow", "open"))[0]
+    with Image.open(tmp_path / "h" / "training" / "arrowv0.png") as image:
+        assert np.array_equal(np.asarray(image), np.asarray(draw_arrow(style)))
+    status, out, err = run_cli(capsys, "draw-signs", str(tmp_path / "b"), "--heads", "round")
+    assert status == 2 and "'round'" in err and "Traceback" not in err
+    assert not (tmp_path / "b").exists()

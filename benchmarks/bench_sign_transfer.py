@@ -24,7 +24,6 @@ side by side).
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 import tempfile
 from pathlib import Path
@@ -41,6 +40,7 @@ from amaze.maze.arrow_styles import (
 )
 from amaze.maze.signs import register_custom_signs
 from amaze.maze.spec import MazeSpec
+from amaze.runs.folder import write_rows
 from evolution.agent_file import AgentFileError, load_agent
 
 SHAPES = ("arrow", "rarrow", "star", "point", "warning", *HELD_OUT_STYLES)
@@ -108,10 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         rows = [row for path, agent in agents for row in _rows(path, agent, shapes, directions)]
         if args.csv is not None:
-            with args.csv.open("w", newline="", encoding="utf-8") as stream:
-                writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
-                writer.writeheader()
-                writer.writerows(rows)
+            write_rows(args.csv, rows)
             print(f"rows written to {args.csv}")
         blind = [shape for shape in shapes if not directions[shape]]
         if blind:

@@ -18,6 +18,7 @@ helpers so that a run killed at any moment leaves readable files behind:
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import shutil
@@ -33,6 +34,7 @@ __all__ = [
     "write_bytes",
     "write_folder",
     "write_json",
+    "write_rows",
 ]
 
 #: Columns of ``progress.csv`` files written before R̄ and the success rate had one
@@ -66,6 +68,15 @@ def write_json(path: str | os.PathLike, data: Any) -> Path:
     """Write ``data`` as indented, key-sorted JSON, atomically."""
     text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     return write_bytes(path, text.encode("utf-8"))
+
+
+def write_rows(path: str | os.PathLike, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """Write ``rows`` (at least one; the first one's keys are the columns) as CSV, atomically."""
+    stream = io.StringIO(newline="")
+    writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    return write_bytes(path, stream.getvalue().encode("utf-8"))
 
 
 def write_folder(path: str | os.PathLike, fill: Callable[[Path], None]) -> Path:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 from pathlib import Path
 
 import pytest
 
-from amaze.runs.folder import settled_folder, write_folder
+from amaze.runs.folder import settled_folder, write_folder, write_rows
 from tests.amaze.runs.test_curriculum import CONFIG, choices
 from tests.amaze.runs.toy_curriculum import ToyError, ToyLearner, ToyRun
 
@@ -103,3 +104,17 @@ def test_a_run_killed_while_saving_a_two_file_learner_resumes(
     ToyRun.resume(out)
     assert choices(out) == choices(finished)
     assert not list(out.rglob(".*.tmp")) and not list(out.rglob(".*.old"))
+
+
+def test_write_rows_writes_csv_whole_and_in_place(tmp_path: Path) -> None:
+    path = tmp_path / "deep" / "rows.csv"
+    rows = [{"agent": "a, b", "score": 0.5}, {"agent": "c", "score": 1}]
+    assert write_rows(path, rows) == path
+    with path.open(newline="", encoding="utf-8") as stream:
+        assert list(csv.DictReader(stream)) == [
+            {"agent": "a, b", "score": "0.5"},
+            {"agent": "c", "score": "1"},
+        ]
+    write_rows(path, rows[1:])  # replaced, not appended; no temporary file left
+    assert path.read_text(encoding="utf-8").splitlines() == ["agent,score", "c,1"]
+    assert sorted(p.name for p in path.parent.iterdir()) == ["rows.csv"]

@@ -2,6 +2,7 @@
 
     python benchmarks/bench_sign_transfer.py AGENT.npz [AGENT.npz ...]
         [--shapes arrow star point ...] [--training-styles DIR] [--csv FILE]
+        [--episodes FILE]
 
 plays each agent of a hybrid robot (``H15``...), trained on mazes whose signs are
 arrows, on the standard suite (18 mazes x 4 rotations) with its signs redrawn
@@ -18,7 +19,8 @@ It prints one row per shape: whether the shape can carry a direction at all
 (:func:`~amaze.maze.arrow_styles.directional`), suite success, mean R̄ and input
 recognition with its four classes; then the shapes that cannot carry a direction.
 ``--csv FILE`` also writes every agent's rows to one CSV file (a study's agents
-side by side).
+side by side); ``--episodes FILE`` every suite episode (agent, shape, maze
+played, its suite column, success, R̄): which mazes a shape is lost on.
 """
 
 from __future__ import annotations
@@ -73,6 +75,9 @@ def main(argv: list[str] | None = None) -> int:
         help="also register this folder of sign PNGs (amaze draw-signs OUT writes OUT/training)",
     )
     parser.add_argument("--csv", type=Path, metavar="FILE", help="also write the rows to FILE")
+    parser.add_argument(
+        "--episodes", type=Path, metavar="FILE", help="also write every suite episode to FILE"
+    )
     args = parser.parse_args(argv)
     agents = []
     for path in args.agents:
@@ -87,9 +92,10 @@ def main(argv: list[str] | None = None) -> int:
                   file=sys.stderr)  # fmt: skip
             return 2
         agents.append((path, agent))
-    if args.csv is not None and not args.csv.parent.is_dir():
-        print(f"error: --csv {args.csv}: folder {args.csv.parent} does not exist", file=sys.stderr)
-        return 2
+    for option, path in (("--csv", args.csv), ("--episodes", args.episodes)):
+        if path is not None and not path.parent.is_dir():
+            print(f"error: {option} {path}: folder {path.parent} does not exist", file=sys.stderr)
+            return 2
     with tempfile.TemporaryDirectory() as folder:
         draw_held_out(Path(folder))
         shapes = list(SHAPES) if args.shapes is None else args.shapes
@@ -106,10 +112,15 @@ def main(argv: list[str] | None = None) -> int:
         except AmazeError as error:
             print(f"error: {error}", file=sys.stderr)
             return 2
-        rows = [row for path, agent in agents for row in _rows(path, agent, shapes, directions)]
+        rows, episodes = [], []
+        for path, agent in agents:
+            rows += _rows(path, agent, shapes, directions, episodes)
         if args.csv is not None:
             write_rows(args.csv, rows)
             print(f"rows written to {args.csv}")
+        if args.episodes is not None:
+            write_rows(args.episodes, episodes)
+            print(f"episodes written to {args.episodes}")
         blind = [shape for shape in shapes if not directions[shape]]
         if blind:
             print(
@@ -122,8 +133,12 @@ def main(argv: list[str] | None = None) -> int:
 CLASSES = ("clue", "trap", "lure", "empty")
 
 
-def _rows(path: Path, agent, shapes: list[str], directions: dict[str, bool]) -> list[dict]:
-    """Print and return the rows of one agent: the suite and the input test in each shape."""
+def _rows(
+    path: Path, agent, shapes: list[str], directions: dict[str, bool], episodes: list[dict]
+) -> list[dict]:
+    """Print and return the rows of one agent: the suite and the input test in each shape.
+
+    Its suite episodes are appended to ``episodes``, one row each."""
     robot = agent.robot.to_string()
     suite = standard_suite().maze_strings(rotations=True)
     print(f"agent {path} ({robot}), standard suite (18 mazes x 4 rotations) per shape")
@@ -132,6 +147,11 @@ def _rows(path: Path, agent, shapes: list[str], directions: dict[str, bool]) -> 
     for shape in shapes:
         mazes = [reshaped(maze, shape) for maze in suite]
         report = Evaluator(robot, mazes, inputs=False).evaluate(agent)
+        episodes += [
+            {"agent": str(path), "shape": shape, "maze": e.maze, "column": e.column,
+             "success": e.success, "normalized_reward": e.normalized_reward}
+            for e in report.episodes
+        ]  # fmt: skip
         spec = MazeSpec.from_string(reshaped(INPUT_SIGNS_MAZE, shape))
         inputs = enumerate_inputs(robot, spec.clue, spec.lure, spec.trap)
         recognition = evaluate_inputs(agent, inputs)

@@ -21,7 +21,9 @@
   checkpoint/resume, and the ``amaze-evolve`` command;
 * :mod:`evolution.learner`, :mod:`evolution.curriculum`: evolution as a
   curriculum learner, and the curriculum regimes (``--regime edhucat``,
-  ``--regime interpolation``) of ``amaze-evolve``.
+  ``--regime interpolation``) of ``amaze-evolve``;
+* :mod:`evolution.imitation`: a capacity check, the oracle's actions taught
+  to a network by DAgger (torch, imported only there and only when used).
 """
 
 from __future__ import annotations

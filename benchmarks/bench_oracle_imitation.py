@@ -1,0 +1,122 @@
+"""Can an evolution network drive a continuous robot? Taught by the oracle, on family mazes.
+
+    python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16] [--pool 5]
+        [--pooling mean] [--iterations 10] [--mazes 64] [--seed 0] [--out FILE.npz]
+        [--csv FILE]
+
+CMA-ES has not made a continuous robot reach the goals of the paper's suite
+(docs/robots.md). Is the network unable to drive one, or is the search the
+obstacle? :func:`evolution.imitation.imitate` teaches a network of the
+evolution's kind (the pooled image, the weights shared by the four directions,
+the ``(tanh(s_E - s_W), tanh(s_N - s_S))`` accelerations) the actions of the
+oracle, which knows the way, by DAgger on mazes of the paper's training family
+(new seeds, never the suite's). After each iteration it prints the network's
+success and path progress on unseen family mazes (32, one episode each); at the
+end, success, path progress and mean R̄ on the paper's suite (72 episodes).
+
+A network that drives the suite this way can represent a solution, and
+CMA-ES's failure with it is one of search (fitness, curriculum, budget); one
+that cannot is too small or sees too little. The agent file ``--out`` writes is
+not a training result: its teacher knew the way. ``--csv FILE`` writes the
+run's figures as one row (the network, the last iteration's, the suite's).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from amaze.curriculum.validation import unseen_mazes, validation_mazes
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE, paper_suite
+from amaze.runs.folder import write_rows
+from evolution.agent_file import save_network_agent
+from evolution.config import EvolutionConfigError
+from evolution.imitation import ImitationConfig, imitate
+from evolution.networks import NetworkSpec
+from evolution.population import PopulationEvaluator
+
+
+def score(spec: NetworkSpec, params: np.ndarray, mazes: list[str]) -> tuple[float, float, float]:
+    """Success, path progress and mean R̄ of the network ``params`` on ``mazes``."""
+    evaluator = PopulationEvaluator(mazes, spec.robot, fitness="path_progress")
+    result = evaluator.evaluate(spec.population(params[None, :]))
+    return (
+        float(result.success_rate[0]), float(result.fitness[0]),
+        float(result.normalized_reward[0]),
+    )  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robot", default="CC15")
+    parser.add_argument("--hidden", type=int, nargs="*", default=[16], help="hidden layer sizes")
+    parser.add_argument("--pool", type=int, default=5, help="side of the pooled image grid")
+    parser.add_argument("--pooling", default="mean", help="mean or max")
+    parser.add_argument("--iterations", type=int, default=10)
+    parser.add_argument("--mazes", type=int, default=64, help="training family mazes")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, help="write the taught network as an agent file")
+    parser.add_argument("--csv", type=Path, metavar="FILE", help="write the figures to FILE")
+    args = parser.parse_args(argv)
+    for option, path in (("--out", args.out), ("--csv", args.csv)):
+        if path is not None and not path.parent.is_dir():
+            print(f"error: {option} {path}: folder {path.parent} does not exist", file=sys.stderr)
+            return 2
+    try:
+        spec = NetworkSpec(
+            robot=args.robot, hidden=tuple(args.hidden), pool=args.pool,
+            pooling=args.pooling, symmetry="rotations",
+        )  # fmt: skip
+        config = ImitationConfig(iterations=args.iterations, seed=args.seed)
+        mazes = validation_mazes(PAPER_TRAINING_MAZE, args.mazes, 10_000 + args.seed)
+    except (EvolutionConfigError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    family = unseen_mazes(PAPER_TRAINING_MAZE, args.seed)
+    print(f"{spec.robot}, hidden {list(spec.hidden)}, pool {spec.pool} ({spec.pooling}),"
+          f" {spec.n_params} parameters; taught on {len(mazes)} family mazes,"
+          f" scored on {len(family)} others")  # fmt: skip
+    start = time.perf_counter()
+    row: dict[str, object] = {
+        "robot": spec.robot, "hidden": " ".join(map(str, spec.hidden)), "pool": spec.pool,
+        "pooling": spec.pooling, "parameters": spec.n_params, "seed": args.seed,
+    }  # fmt: skip
+
+    def report(record: dict[str, float], params: np.ndarray) -> None:
+        success, progress, _ = score(spec, params, family)
+        row.update(
+            iterations=int(record["iteration"]) + 1, samples=int(record["samples"]),
+            loss=record["loss"], family_success=success, family_progress=progress,
+        )  # fmt: skip
+        print(f"iteration {record['iteration']:2.0f}  beta {record['beta']:.3f}"
+              f"  samples {record['samples']:>9.0f}  loss {record['loss']:.4f}"
+              f"  family success {success:.3f}  progress {progress:.3f}"
+              f"  ({time.perf_counter() - start:.0f} s)", flush=True)  # fmt: skip
+
+    result = imitate(spec, mazes, config, on_iteration=report)
+    suite = paper_suite().maze_strings()
+    success, progress, reward = score(spec, result.params, suite)
+    print(f"paper suite ({len(suite)} episodes): success {success:.3f}"
+          f"  path progress {progress:.3f}  mean R̄ {reward:+.3f}")  # fmt: skip
+    row.update(
+        suite_success=success, suite_progress=progress, suite_reward=reward,
+        seconds=round(time.perf_counter() - start, 1),
+    )  # fmt: skip
+    if args.csv is not None:
+        write_rows(args.csv, [row])
+        print(f"figures written to {args.csv}")
+    if args.out is not None:
+        path = save_network_agent(
+            args.out, spec, result.params, algorithm="oracle imitation (DAgger)",
+            seed=args.seed, mazes=mazes,
+        )  # fmt: skip
+        print(f"taught network written to {path} (not a training result: its teacher knew the way)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,234 @@
+"""Can a network of this kind drive this robot? Teach it the oracle's actions and see.
+
+Evolution searches a :class:`~evolution.networks.NetworkSpec`'s parameters for a
+policy; when it finds none, the network may be unable to represent one (too
+few units, a pooled image too coarse), or the search may not reach it. This
+module tells the two apart: DAgger (Ross, Gordon and Bagnell, 2011) fits the
+network, by gradient descent in torch, to the actions of
+:class:`~amaze.evaluation.controllers.OracleController` (which knows the
+maze's solution and the robot's position; the network sees only its
+observation), on the states the network itself reaches. Iteration ``i``
+drives the robots with the oracle's action with probability ``0.5 ** i`` and
+the network's otherwise, labels every observation with the oracle's action,
+and fits the network on all observations so far (the newest
+``max_samples``): continuous robots by the squared error of the
+accelerations, discrete ones by the cross-entropy of the direction scores.
+The parameters come back in the spec's own layout, so the taught network is
+an ordinary agent (:func:`evolution.agent_file.save_network_agent`) scored
+by the usual evaluators.
+
+A taught network is a capacity check, not a training result: its teacher
+knows the way. ``benchmarks/bench_oracle_imitation.py`` runs it and scores
+the network on the paper's suite. The teacher of a continuous robot steers
+without braking by default (``damping = 0``: the image shows no velocity,
+and this law solves the suite, see :class:`OracleController`).
+
+torch is imported when a network is built, not with this module.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from amaze.agents.engine import BatchEngine
+from amaze.evaluation.controllers import OracleController
+from amaze.maze import Maze, MazeSpec
+from amaze.validation import check_integer, check_number
+
+from .config import EvolutionConfigError
+from .networks import NetworkSpec
+
+__all__ = ["ImitationConfig", "ImitationResult", "imitate", "torch_network"]
+
+#: The continuous teacher's gain and damping (see the module docstring).
+TEACHER_GAIN = 2.0
+TEACHER_DAMPING = 0.0
+#: Bounds of the config's counts: ``max_samples`` keeps the samples held in memory
+#: under about 9 GB for a 15 x 15 image read pixel by pixel (225 float32 inputs).
+_MAXIMA = {
+    "iterations": 1000, "agents": 1 << 16, "steps": 100_000, "updates": 1_000_000,
+    "batch": 1 << 20, "max_samples": 10_000_000,
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class ImitationConfig:
+    """How long and how DAgger teaches (see the module docstring).
+
+    ``agents`` robots are driven at once for ``steps`` batch steps per
+    iteration (their episodes go on across iterations); the network then takes
+    ``updates`` Adam steps of ``batch`` samples at ``learning_rate``.
+    """
+
+    iterations: int = 10
+    agents: int = 512
+    steps: int = 400
+    updates: int = 1500
+    batch: int = 4096
+    learning_rate: float = 3e-3
+    max_samples: int = 3_000_000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("iterations", "agents", "steps", "updates", "batch", "max_samples"):
+            check_integer(
+                name, getattr(self, name), minimum=1, maximum=_MAXIMA[name],
+                error=EvolutionConfigError,
+            )  # fmt: skip
+        check_integer("seed", self.seed, minimum=0, error=EvolutionConfigError)
+        check_number(
+            "learning_rate", self.learning_rate, minimum=0.0, strict_minimum=True,
+            error=EvolutionConfigError,
+        )  # fmt: skip
+
+
+@dataclass
+class ImitationResult:
+    """The taught parameters (``(spec.n_params,)``, float64) and one record per iteration."""
+
+    params: np.ndarray
+    history: list[dict[str, float]] = field(default_factory=list)
+
+
+def torch_network(spec: NetworkSpec) -> Any:
+    """A torch module computing what ``spec``'s networks compute, in float32.
+
+    Called on a float32 tensor of :meth:`NetworkSpec.encode` inputs, it returns
+    the accelerations (continuous robots) or the four direction scores
+    (discrete outputs); ``flat_params()`` and ``load_params(vector)`` convert
+    from and to the spec's parameter layout. Convolutional networks are
+    refused (their inputs are not :meth:`~NetworkSpec.encode`'s).
+    """
+    if spec.filters:
+        raise EvolutionConfigError(
+            f"filters {spec.filters}: imitation teaches dense networks on pooled images only"
+        )
+    import torch
+
+    activations: dict[str, Callable[[Any], Any]] = {
+        "tanh": torch.tanh, "relu": torch.relu, "sigmoid": torch.sigmoid,
+        "identity": lambda x: x,
+    }  # fmt: skip
+
+    class _Network(torch.nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.continuous = not spec.robot_info.discrete_outputs
+            self.turned = spec.copies > 1
+            if self.turned:
+                self.register_buffer(
+                    "index", torch.as_tensor(spec.rotation_index(), dtype=torch.long)
+                )
+            self.layers = torch.nn.ModuleList(
+                torch.nn.Linear(d_in, d_out) for d_in, d_out in spec.layer_shapes
+            )
+            self.activation = activations[spec.activation]
+
+        def forward(self, inputs: Any) -> Any:
+            x = inputs[:, self.index] if self.turned else inputs
+            for k, layer in enumerate(self.layers):
+                x = layer(x)
+                if k < len(self.layers) - 1:
+                    x = self.activation(x)
+            if self.turned:
+                scores = x[..., 0]  # (n, 4): E, N, W, S
+                if not self.continuous:
+                    return scores
+                return torch.tanh(
+                    torch.stack([scores[:, 0] - scores[:, 2], scores[:, 1] - scores[:, 3]], 1)
+                )
+            return torch.tanh(x) if self.continuous else x
+
+        def flat_params(self) -> np.ndarray:
+            parts = []
+            for layer in self.layers:
+                parts.append(layer.weight.detach().numpy().T.ravel())
+                parts.append(layer.bias.detach().numpy())
+            return np.concatenate(parts).astype(np.float64)
+
+        def load_params(self, params: np.ndarray) -> None:
+            with torch.no_grad():
+                for layer, (weights, biases) in zip(
+                    self.layers, spec.unflatten(params), strict=True
+                ):
+                    layer.weight.copy_(torch.as_tensor(weights.T, dtype=torch.float32))
+                    layer.bias.copy_(torch.as_tensor(biases, dtype=torch.float32))
+
+    return _Network()
+
+
+def imitate(
+    spec: NetworkSpec,
+    mazes: Sequence[Maze | MazeSpec | str],
+    config: ImitationConfig | None = None,
+    *,
+    on_iteration: Callable[[dict[str, float], np.ndarray], None] | None = None,
+) -> ImitationResult:
+    """Teach ``spec``'s network the oracle's actions on ``mazes`` by DAgger.
+
+    ``on_iteration(record, params)`` hears of each iteration (``iteration``,
+    ``beta``, ``samples``, ``loss``: the last batch's) with the parameters so
+    far. The same spec, mazes and config give the same parameters on one
+    machine (torch's CPU kernels may round differently elsewhere).
+    """
+    import torch
+
+    config = config or ImitationConfig()
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    engine = BatchEngine(list(mazes), spec.robot, config.agents)
+    robot = spec.robot_info
+    if robot.discrete_outputs:
+        oracle = OracleController(robot)
+    else:
+        oracle = OracleController(robot, gain=TEACHER_GAIN, damping=TEACHER_DAMPING)
+    oracle.bind(engine)
+    network = torch_network(spec)
+    optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
+    label_shape = (2,) if not robot.discrete_outputs else ()
+    label_type = np.float32 if not robot.discrete_outputs else np.int64
+    inputs = np.empty((0, spec.n_inputs), dtype=np.float32)
+    labels = np.empty((0, *label_shape), dtype=label_type)
+    observations = engine.reset()
+    result = ImitationResult(params=network.flat_params())
+    for iteration in range(config.iterations):
+        beta = 0.5**iteration
+        new_inputs, new_labels = [], []
+        for _ in range(config.steps):
+            encoded = spec.encode(observations)
+            teacher = oracle(observations)
+            with torch.no_grad():
+                output = network(torch.as_tensor(encoded)).numpy()
+            student = output.argmax(axis=1) if robot.discrete_outputs else output
+            taught = rng.random(engine.n_agents) < beta
+            mask = taught if robot.discrete_outputs else taught[:, None]
+            actions = np.where(mask, teacher, student)
+            new_inputs.append(encoded)
+            new_labels.append(teacher.astype(label_type))
+            observations = engine.step(actions).observations
+        inputs = np.concatenate([inputs, *new_inputs])[-config.max_samples :]
+        labels = np.concatenate([labels, *new_labels])[-config.max_samples :]
+        x, y = torch.as_tensor(inputs), torch.as_tensor(labels)
+        for _ in range(config.updates):
+            batch = torch.as_tensor(rng.integers(0, len(x), config.batch))
+            output = network(x[batch])
+            if robot.discrete_outputs:
+                loss = torch.nn.functional.cross_entropy(output, y[batch])
+            else:
+                loss = torch.mean((output - y[batch]) ** 2)
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+        result.params = network.flat_params()
+        record = {
+            "iteration": float(iteration), "beta": beta, "samples": float(len(x)),
+            "loss": float(loss.item()),
+        }  # fmt: skip
+        result.history.append(record)
+        if on_iteration is not None:
+            on_iteration(record, result.params)
+    return result

@@ -1,0 +1,86 @@
+"""Oracle imitation: the torch network computes the spec's network; DAgger teaches a driver."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from amaze.agents.engine import BatchEngine
+from evolution.config import EvolutionConfigError
+from evolution.imitation import ImitationConfig, imitate, torch_network
+from evolution.networks import NetworkSpec
+from evolution.population import PopulationEvaluator
+
+torch = pytest.importorskip("torch")
+
+SPECS = [
+    NetworkSpec(robot="CC7", hidden=(8,), pool=7, symmetry="rotations"),
+    NetworkSpec(robot="CC9", hidden=(6, 5), pool=3, pooling="max", activation="relu"),
+    NetworkSpec(robot="CC7", hidden=(), pool=5, symmetry="rotations", activation="sigmoid"),
+    NetworkSpec(robot="H7", hidden=(8,), pool=5, symmetry="rotations"),
+    NetworkSpec(robot="DD", hidden=(8,), symmetry="rotations"),
+    NetworkSpec(robot="DD", hidden=(4,)),
+]
+
+
+def _observations(spec: NetworkSpec, n: int = 96) -> np.ndarray:
+    """Observations of robots driven at random for a few steps in a 6x6 maze with signs."""
+    engine = BatchEngine(["M3_6x6_C1_l.25_L.25_t.5_T.5"], spec.robot, n)
+    rng = np.random.default_rng(0)
+    observations = [engine.reset()]
+    for _ in range(12):
+        if spec.robot_info.discrete_outputs:
+            actions = rng.integers(0, 4, n)
+        else:
+            actions = rng.uniform(-1, 1, (n, 2))
+        observations.append(engine.step(actions).observations)
+    return np.concatenate(observations)
+
+
+@pytest.mark.parametrize("spec", SPECS, ids=lambda s: f"{s.robot}-{s.symmetry}-{s.pool}")
+def test_the_torch_network_acts_as_the_spec_network(spec: NetworkSpec) -> None:
+    params = spec.initial_params(np.random.default_rng(1)) * 2.0
+    params[-1] += 0.3  # a non-zero bias: the layout of biases is checked too
+    network = torch_network(spec)
+    network.load_params(params)
+    np.testing.assert_allclose(network.flat_params(), params, atol=1e-6)  # float32 round trip
+    observations = _observations(spec)
+    with torch.no_grad():
+        ours = network(torch.as_tensor(spec.encode(observations))).numpy()
+    population = spec.population(params[None, :])
+    if spec.robot_info.discrete_outputs:
+        scores = population.forward(observations)
+        np.testing.assert_allclose(ours, scores, atol=2e-5)
+    else:
+        np.testing.assert_allclose(ours, population(observations), atol=2e-5)
+
+
+def test_convolutional_networks_and_bad_counts_are_refused() -> None:
+    with pytest.raises(EvolutionConfigError, match="filters 2"):
+        torch_network(NetworkSpec(robot="CC7", filters=2, symmetry="rotations"))
+    with pytest.raises(EvolutionConfigError, match="max_samples"):
+        ImitationConfig(max_samples=10**9)
+    with pytest.raises(EvolutionConfigError, match="learning_rate"):
+        ImitationConfig(learning_rate=0.0)
+
+
+def test_dagger_teaches_a_discrete_robot_to_follow_unseen_corridors() -> None:
+    """A linear network shared by the four directions can follow a corridor (go to the open
+    side the robot did not come from); taught on two unicursive mazes, it solves others."""
+    spec = NetworkSpec(robot="DD", hidden=(), symmetry="rotations")
+    config = ImitationConfig(iterations=3, agents=32, steps=60, updates=300, batch=256, seed=3)
+    records = []
+    result = imitate(
+        spec, ["M1_6x6_U", "M2_7x5_U"], config,
+        on_iteration=lambda record, params: records.append(record),
+    )  # fmt: skip
+    assert [r["iteration"] for r in records] == [0.0, 1.0, 2.0]
+    assert [r["beta"] for r in records] == [1.0, 0.5, 0.25]
+    assert result.history == records
+    unseen = ["M11_8x8_U", "M12_5x9_U", "M13_10x10_U"]
+    evaluator = PopulationEvaluator(unseen, "DD", rotations=True)
+    assert evaluator.evaluate(spec.population(result.params[None, :])).success_rate[0] == 1.0
+    untaught = spec.initial_params(np.random.default_rng(3))
+    assert evaluator.evaluate(spec.population(untaught[None, :])).success_rate[0] < 1.0
+    again = imitate(spec, ["M1_6x6_U", "M2_7x5_U"], config)
+    np.testing.assert_array_equal(again.params, result.params)  # same seed, same network

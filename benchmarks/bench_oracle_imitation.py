@@ -1,4 +1,4 @@
-"""Can an evolution network drive a continuous robot? Taught by the oracle, on family mazes.
+"""Can an evolution network drive a robot at all? Taught by the oracle, on family mazes.
 
     python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16] [--pool 5]
         [--pooling mean] [--iterations 10] [--mazes 64] [--seed 0] [--out FILE.npz]
@@ -13,6 +13,8 @@ oracle, which knows the way, by DAgger on mazes of the paper's training family
 (new seeds, never the suite's). After each iteration it prints the network's
 success and path progress on unseen family mazes (32, one episode each); at the
 end, success, path progress and mean R̄ on the paper's suite (72 episodes).
+Other robots work too (``--robot H15``, ``--robot DD``: taught the oracle's
+directions); ``--pool`` is for image robots.
 
 A network that drives the suite this way can represent a solution, and
 CMA-ES's failure with it is one of search (fitness, curriculum, budget); one
@@ -54,7 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robot", default="CC15")
     parser.add_argument("--hidden", type=int, nargs="*", default=[16], help="hidden layer sizes")
-    parser.add_argument("--pool", type=int, default=5, help="side of the pooled image grid")
+    parser.add_argument(
+        "--pool", type=int, help="side of the pooled image grid (image robots; default 5)"
+    )
     parser.add_argument("--pooling", default="mean", help="mean or max")
     parser.add_argument("--iterations", type=int, default=10)
     parser.add_argument("--mazes", type=int, default=64, help="training family mazes")
@@ -66,6 +70,9 @@ def main(argv: list[str] | None = None) -> int:
         if path is not None and not path.parent.is_dir():
             print(f"error: {option} {path}: folder {path.parent} does not exist", file=sys.stderr)
             return 2
+    if args.mazes < 1:
+        print(f"error: --mazes {args.mazes}: teach on at least one maze", file=sys.stderr)
+        return 2
     try:
         spec = NetworkSpec(
             robot=args.robot, hidden=tuple(args.hidden), pool=args.pool,
@@ -77,9 +84,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     family = unseen_mazes(PAPER_TRAINING_MAZE, args.seed)
-    print(f"{spec.robot}, hidden {list(spec.hidden)}, pool {spec.pool} ({spec.pooling}),"
-          f" {spec.n_params} parameters; taught on {len(mazes)} family mazes,"
-          f" scored on {len(family)} others")  # fmt: skip
+    pooled = f"pool {spec.pool} ({spec.pooling})"
+    inputs = f"{spec.n_inputs} inputs" if spec.pool is None else pooled
+    print(f"{spec.robot}, hidden {list(spec.hidden)}, {inputs}, {spec.n_params} parameters;"
+          f" taught on {len(mazes)} family mazes, scored on {len(family)} others")  # fmt: skip
     start = time.perf_counter()
     row: dict[str, object] = {
         "robot": spec.robot, "hidden": " ".join(map(str, spec.hidden)), "pool": spec.pool,

@@ -61,7 +61,7 @@ from typing import Any
 import numpy as np
 
 from amaze.archives import open_npz
-from amaze.runs.folder import write_bytes
+from amaze.runs.folder import signals_deferred, write_bytes
 from amaze.runs.state_document import (
     ArrayLookup,
     CheckpointError,
@@ -118,10 +118,12 @@ def write_checkpoint(path: str | os.PathLike, state: Any, codec: StateCodec) -> 
     writer = StateWriter(codec)
     document = {"format": FORMAT, "version": VERSION, "state": writer.write(state, "state")}
     text = json.dumps(simplified(document), separators=(",", ":"), allow_nan=False)
-    buffer = io.BytesIO()
     arrays = {f"a{index}": array for index, array in enumerate(writer.arrays)}
-    np.savez_compressed(buffer, state=np.frombuffer(text.encode("utf-8"), dtype=np.uint8), **arrays)
-    return write_bytes(path, buffer.getvalue())
+    with signals_deferred():  # a stop inside numpy's zip writer would leave it half closed
+        buffer = io.BytesIO()
+        state_bytes = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
+        np.savez_compressed(buffer, state=state_bytes, **arrays)
+        return write_bytes(path, buffer.getvalue())
 
 
 def read_checkpoint(

@@ -12,17 +12,23 @@ helpers so that a run killed at any moment leaves readable files behind:
   learner's checkpoint): it is read whole, old or new, never a mix of both;
 * :class:`ProgressLog` appends one CSV row per evaluation or generation and,
   on resume, drops the rows written after the checkpoint being resumed, so the
-  log of a resumed run reads as that of an uninterrupted one.
+  log of a resumed run reads as that of an uninterrupted one;
+* :func:`signals_deferred` holds Ctrl-C and SIGTERM back while a file is being
+  serialised, so that a stop lands before or after the write, never inside a
+  library's writer (whose half-closed objects would print tracebacks at exit).
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
 import os
 import shutil
-from collections.abc import Callable, Mapping, Sequence
+import signal
+import threading
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +37,7 @@ __all__ = [
     "ProgressLog",
     "read_text",
     "settled_folder",
+    "signals_deferred",
     "write_bytes",
     "write_folder",
     "write_json",
@@ -49,6 +56,41 @@ OLD_COLUMNS = {
     "validation_success": "validation_success_rate",
     "champion_success": "champion_success_rate",
 }
+
+
+#: The signals :func:`signals_deferred` holds back: Ctrl-C and SIGTERM.
+DEFERRED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Meanwhile, hold SIGINT and SIGTERM back; afterwards, deliver the first that came.
+
+    The signal is raised again once the previous handlers are back, so it acts
+    as it would have (``KeyboardInterrupt``, a ``Terminated`` of
+    :mod:`amaze.runs.command`, the default exit), only later. Off the main
+    thread, where Python runs no signal handler, nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def hold(signum: int, frame: object) -> None:
+        received.append(signum)
+
+    previous: dict[int, Any] = {}
+    try:
+        for signum in DEFERRED_SIGNALS:
+            handler = signal.getsignal(signum)
+            if handler is not None:  # None: a handler not set from Python, left alone
+                previous[signum] = signal.signal(signum, hold)
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if received:
+            signal.raise_signal(received[0])
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
@@ -87,18 +129,20 @@ def write_folder(path: str | os.PathLike, fill: Callable[[Path], None]) -> Path:
     and the old one removed. A kill between the two renames leaves no ``path``
     but a complete ``.tmp``, which :func:`settled_folder` puts in place. (A
     learner writes two files; written in place, a kill between them left a
-    checkpoint whose files disagreed, or one without its learner.)
+    checkpoint whose files disagreed, or one without its learner.) Ctrl-C and
+    SIGTERM wait for it (:func:`signals_deferred`).
     """
     path = Path(path)
     tmp, old = _aside(path, "tmp"), _aside(path, "old")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    fill(tmp)
-    shutil.rmtree(old, ignore_errors=True)
-    if path.exists():
-        os.replace(path, old)
-    os.replace(tmp, path)
-    shutil.rmtree(old, ignore_errors=True)
+    with signals_deferred():  # a stop waits for the folder: fill's writers are never cut
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        fill(tmp)
+        shutil.rmtree(old, ignore_errors=True)
+        if path.exists():
+            os.replace(path, old)
+        os.replace(tmp, path)
+        shutil.rmtree(old, ignore_errors=True)
     return path
 
 

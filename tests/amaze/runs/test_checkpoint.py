@@ -7,6 +7,7 @@ import io
 import json
 import os
 import pickle
+import signal
 import zipfile
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -295,3 +296,38 @@ def test_a_progress_log_with_a_damaged_number_is_refused(tmp_path: Path) -> None
     log.path.write_text(log.path.read_text().replace("-4.5", "-4.]5"))
     with pytest.raises(AmazeError, match=r"line 2: best '-4\.\]5' is not a number"):
         log.checked_rows("step", AmazeError)
+
+
+@pytest.mark.parametrize("sent", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_during_the_write_lands_after_a_whole_checkpoint(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sent: int
+) -> None:
+    """Ctrl-C or SIGTERM inside numpy's zip writer waits for the write, then stops the run."""
+
+    class Stopped(Exception):
+        pass
+
+    def stop(signum: int, frame: object) -> None:
+        raise Stopped(signum)
+
+    real_savez = np.savez_compressed
+    reached: list[str] = []
+
+    def savez_interrupted(*args: Any, **kwargs: Any) -> None:
+        os.kill(os.getpid(), sent)  # lands in the middle of the serialisation
+        reached.append("after the signal")
+        real_savez(*args, **kwargs)
+
+    monkeypatch.setattr(np, "savez_compressed", savez_interrupted)
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with pytest.raises(Stopped) as stopped:
+            write_checkpoint(tmp_path / "state.npz", _state(), CODEC)
+        assert stopped.value.args == (sent,)
+        assert reached == ["after the signal"]
+        assert signal.getsignal(signal.SIGINT) is stop and signal.getsignal(signal.SIGTERM) is stop
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    restored = read_checkpoint(tmp_path / "state.npz", CODEC, AmazeError, expected=State)
+    assert np.array_equal(restored.weights, _state().weights)

@@ -103,8 +103,9 @@ class Terminated(KeyboardInterrupt):
 def interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
     """The interrupt (Ctrl-C or :class:`Terminated`) that ``error`` was raised while handling.
 
-    A signal can land inside a library's write (numpy's ``savez`` in a
-    checkpoint's serialisation, say), whose clean-up then raises an error of
+    A signal can land inside a library's write (checkpoints and checkpoint
+    folders hold signals back, :func:`amaze.runs.folder.signals_deferred`; an
+    agent file's ``savez`` does not), whose clean-up then raises an error of
     its own with the interrupt as its context. The run stopped because of the
     interrupt, so it ends as one (exit status, message), not with a traceback.
     """

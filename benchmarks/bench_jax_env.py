@@ -1,9 +1,11 @@
 """Throughput of AMaze as a JAX environment, beside the numba vector env and gymnax's FourRooms.
 
-Env-steps per second with random actions, for ``DD`` and ``H15`` at 4, 64 and
+Env-steps per second with random actions, for ``DD`` and ``H15`` (and continuous
+robots, ``--robots CC15``: accelerations uniform in [-1, 1]) at 4, 64 and
 4096 environments, on the paper's complex 20x20 mazes
 ``M<seed>_20x20_C1_l.25_L.25_t.5_T.5`` (16 seeds; environment ``k`` plays maze
-``k % 16``, from params stacked with ``amaze.envs.jax.make_batch``):
+``k % 16``, from params stacked with ``amaze.envs.jax.make_batch``, or
+``amaze.envs.jax.continuous.make_continuous`` for continuous robots):
 
 * **amaze JAX**: ``jax.vmap(env.step)`` inside one compiled ``lax.scan``, the
   actions drawn in the scan (``jax.random.randint``), a key per environment and
@@ -42,7 +44,9 @@ import numba
 import numpy as np
 
 import amaze  # noqa: F401  (registers AMaze-v0)
+from amaze.agents.robot import as_robot
 from amaze.envs.jax import make_batch
+from amaze.envs.jax.continuous import JaxContinuousEnv, make_continuous
 
 MAZE = "M{seed}_20x20_C1_l.25_L.25_t.5_T.5"
 N_MAZES = 16
@@ -57,7 +61,10 @@ def compiled_rollout(env, params, n: int, steps: int, params_axis: int | None) -
     def one_step(carry, _):
         key, state, obs, total = carry
         key, k_action, k_step = jax.random.split(key, 3)
-        actions = jax.random.randint(k_action, (n,), 0, 4)
+        if isinstance(env, JaxContinuousEnv):
+            actions = jax.random.uniform(k_action, (n, 2), minval=-1.0, maxval=1.0)
+        else:
+            actions = jax.random.randint(k_action, (n,), 0, 4)
         obs, state, reward, _, _, _ = step(jax.random.split(k_step, n), state, actions, params)
         return (key, state, obs, total + reward.sum()), None
 
@@ -93,7 +100,11 @@ def time_vector_env(robot: str, n: int, steps: int, repeats: int) -> float:
         maze=[MAZE.format(seed=s) for s in range(N_MAZES)],
         robot=robot,
     )
-    actions = np.random.default_rng(0).integers(0, 4, size=(steps, n), dtype=np.int64)
+    rng = np.random.default_rng(0)
+    if as_robot(robot).discrete_outputs:
+        actions = rng.integers(0, 4, size=(steps, n), dtype=np.int64)
+    else:
+        actions = rng.uniform(-1.0, 1.0, size=(steps, n, 2))
     env.reset()
     for t in range(min(steps, 50)):  # numba's first calls, the engine's kernel choice
         env.step(actions[t])
@@ -130,7 +141,10 @@ def main(argv: list[str] | None = None) -> None:
         for n in args.envs:
             steps = args.steps or max(200, min(50_000, STEP_BUDGET // n))
             mazes = [MAZE.format(seed=s) for s in range(N_MAZES)]
-            env, params = make_batch(mazes, robot, num_envs=n)
+            if as_robot(robot).discrete_outputs:
+                env, params = make_batch(mazes, robot, num_envs=n)
+            else:
+                env, params = make_continuous(mazes, robot, num_envs=n)
             ours, compile_ours = time_jax(env, params, n, steps, args.repeats, 0)
             vector = time_vector_env(robot, n, min(steps, 20_000), args.repeats)
             if n not in rooms_rates:

@@ -1,8 +1,8 @@
 """Can an evolution network drive a robot at all? Taught by the oracle, on family mazes.
 
     python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16] [--pool 5]
-        [--pooling mean] [--iterations 10] [--mazes 64] [--seed 0] [--out FILE.npz]
-        [--csv FILE]
+        [--pooling mean] [--filters F --stride S] [--iterations 10] [--mazes 64] [--seed 0]
+        [--out FILE.npz] [--csv FILE]
 
 CMA-ES has not made a continuous robot reach the goals of the paper's suite
 (docs/robots.md). Is the network unable to drive one, or is the search the
@@ -14,7 +14,9 @@ oracle, which knows the way, by DAgger on mazes of the paper's training family
 success and path progress on unseen family mazes (32, one episode each); at the
 end, success, path progress and mean R̄ on the paper's suite (72 episodes).
 Other robots work too (``--robot H15``, ``--robot DD``: taught the oracle's
-directions); ``--pool`` is for image robots.
+directions); ``--pool`` is for image robots, and so are ``--filters`` (a
+convolutional network: F evolved 3x3 filters slid with ``--stride`` over the
+image instead of pooling it, :mod:`evolution.convolution`).
 
 A network that drives the suite this way can represent a solution, and
 CMA-ES's failure with it is one of search (fitness, curriculum, budget); one
@@ -60,6 +62,10 @@ def main(argv: list[str] | None = None) -> int:
         "--pool", type=int, help="side of the pooled image grid (image robots; default 5)"
     )
     parser.add_argument("--pooling", default="mean", help="mean or max")
+    parser.add_argument(
+        "--filters", type=int, default=0, help="3x3 filters instead of pooling (image robots)"
+    )
+    parser.add_argument("--stride", type=int, help="the filters' stride (default: the spec's)")
     parser.add_argument("--iterations", type=int, default=10)
     parser.add_argument("--mazes", type=int, default=64, help="training family mazes")
     parser.add_argument("--seed", type=int, default=0)
@@ -76,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         spec = NetworkSpec(
             robot=args.robot, hidden=tuple(args.hidden), pool=args.pool,
-            pooling=args.pooling, symmetry="rotations",
+            pooling=args.pooling, symmetry="rotations", filters=args.filters,
+            stride=args.stride,
         )  # fmt: skip
         config = ImitationConfig(iterations=args.iterations, seed=args.seed)
         mazes = validation_mazes(PAPER_TRAINING_MAZE, args.mazes, 10_000 + args.seed)
@@ -84,14 +91,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     family = unseen_mazes(PAPER_TRAINING_MAZE, args.seed)
-    pooled = f"pool {spec.pool} ({spec.pooling})"
-    inputs = f"{spec.n_inputs} inputs" if spec.pool is None else pooled
+    if spec.filters:
+        inputs = f"{spec.filters} filters, stride {spec.stride} ({spec.n_inputs} maps' pixels)"
+    elif spec.pool is not None:
+        inputs = f"pool {spec.pool} ({spec.pooling})"
+    else:
+        inputs = f"{spec.n_inputs} inputs"
     print(f"{spec.robot}, hidden {list(spec.hidden)}, {inputs}, {spec.n_params} parameters;"
           f" taught on {len(mazes)} family mazes, scored on {len(family)} others")  # fmt: skip
     start = time.perf_counter()
     row: dict[str, object] = {
         "robot": spec.robot, "hidden": " ".join(map(str, spec.hidden)), "pool": spec.pool,
-        "pooling": spec.pooling, "parameters": spec.n_params, "seed": args.seed,
+        "pooling": spec.pooling, "filters": spec.filters, "stride": spec.stride,
+        "parameters": spec.n_params, "seed": args.seed,
     }  # fmt: skip
 
     def report(record: dict[str, float], params: np.ndarray) -> None:

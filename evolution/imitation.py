@@ -40,9 +40,10 @@ from amaze.maze import Maze, MazeSpec
 from amaze.validation import check_integer, check_number
 
 from .config import EvolutionConfigError
+from .convolution import FILTER_SIDE
 from .networks import NetworkSpec
 
-__all__ = ["ImitationConfig", "ImitationResult", "imitate", "torch_network"]
+__all__ = ["ImitationConfig", "ImitationResult", "imitate", "network_inputs", "torch_network"]
 
 #: The continuous teacher's gain and damping (see the module docstring).
 TEACHER_GAIN = 2.0
@@ -94,19 +95,30 @@ class ImitationResult:
     history: list[dict[str, float]] = field(default_factory=list)
 
 
+def network_inputs(spec: NetworkSpec, observations: np.ndarray) -> np.ndarray:
+    """What :func:`torch_network` reads: :meth:`NetworkSpec.encode`'s inputs, or the images.
+
+    A convolutional network's inputs depend on its filters, so it reads the
+    uint8 ``(n, v, v)`` images themselves (a quarter of float32's memory).
+    """
+    if not spec.filters:
+        return spec.encode(observations)
+    v = int(spec.robot_info.vision)
+    return np.ascontiguousarray(np.asarray(observations, dtype=np.uint8).reshape(-1, v, v))
+
+
 def torch_network(spec: NetworkSpec) -> Any:
     """A torch module computing what ``spec``'s networks compute, in float32.
 
-    Called on a float32 tensor of :meth:`NetworkSpec.encode` inputs, it returns
-    the accelerations (continuous robots) or the four direction scores
-    (discrete outputs); ``flat_params()`` and ``load_params(vector)`` convert
-    from and to the spec's parameter layout. Convolutional networks are
-    refused (their inputs are not :meth:`~NetworkSpec.encode`'s).
+    Called on a tensor of :func:`network_inputs`, it returns the
+    accelerations (continuous robots) or the four direction scores (discrete
+    outputs); ``flat_params()`` and ``load_params(vector)`` convert from and to
+    the spec's parameter layout. A convolutional network
+    (:mod:`evolution.convolution`) slides its 3x3 filters over the image / 255
+    with the spec's stride; with rotations, in their four turns, and direction
+    ``d`` reads the maps of the image turned ``d`` times
+    (:func:`~evolution.convolution.feature_turns`).
     """
-    if spec.filters:
-        raise EvolutionConfigError(
-            f"filters {spec.filters}: imitation teaches dense networks on pooled images only"
-        )
     import torch
 
     activations: dict[str, Callable[[Any], Any]] = {
@@ -123,13 +135,29 @@ def torch_network(spec: NetworkSpec) -> Any:
                 self.register_buffer(
                     "index", torch.as_tensor(spec.rotation_index(), dtype=torch.long)
                 )
+            self.conv = None
+            if spec.filters:
+                self.conv = torch.nn.Conv2d(1, spec.filters, FILTER_SIDE, stride=spec.stride)
             self.layers = torch.nn.ModuleList(
                 torch.nn.Linear(d_in, d_out) for d_in, d_out in spec.layer_shapes
             )
             self.activation = activations[spec.activation]
 
+        def features(self, inputs: Any) -> Any:
+            """The dense layers' inputs: ``(n, n_inputs)``, or ``(n, 4, n_inputs)`` turned."""
+            if self.conv is None:
+                return inputs[:, self.index] if self.turned else inputs
+            images = inputs.to(torch.float32)[:, None] / 255.0
+            weight, bias = self.conv.weight, self.conv.bias
+            if self.turned:  # filter d F + f: filter f turned d quarter-turns anticlockwise
+                weight = torch.cat([torch.rot90(weight, d, dims=(2, 3)) for d in range(4)])
+                bias = bias.repeat(4)
+            maps = torch.nn.functional.conv2d(images, weight, bias, stride=spec.stride)
+            x = self.activation(maps).flatten(1)
+            return x[:, self.index] if self.turned else x
+
         def forward(self, inputs: Any) -> Any:
-            x = inputs[:, self.index] if self.turned else inputs
+            x = self.features(inputs)
             for k, layer in enumerate(self.layers):
                 x = layer(x)
                 if k < len(self.layers) - 1:
@@ -145,6 +173,9 @@ def torch_network(spec: NetworkSpec) -> Any:
 
         def flat_params(self) -> np.ndarray:
             parts = []
+            if self.conv is not None:
+                parts.append(self.conv.weight.detach().numpy().ravel())
+                parts.append(self.conv.bias.detach().numpy())
             for layer in self.layers:
                 parts.append(layer.weight.detach().numpy().T.ravel())
                 parts.append(layer.bias.detach().numpy())
@@ -152,6 +183,10 @@ def torch_network(spec: NetworkSpec) -> Any:
 
         def load_params(self, params: np.ndarray) -> None:
             with torch.no_grad():
+                if self.conv is not None:
+                    weights, biases = spec.filter_params(params)
+                    self.conv.weight.copy_(torch.as_tensor(weights[:, None], dtype=torch.float32))
+                    self.conv.bias.copy_(torch.as_tensor(biases, dtype=torch.float32))
                 for layer, (weights, biases) in zip(
                     self.layers, spec.unflatten(params), strict=True
                 ):
@@ -191,7 +226,11 @@ def imitate(
     optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
     label_shape = (2,) if not robot.discrete_outputs else ()
     label_type = np.float32 if not robot.discrete_outputs else np.int64
-    inputs = np.empty((0, spec.n_inputs), dtype=np.float32)
+    if spec.filters:
+        v = int(robot.vision)
+        inputs = np.empty((0, v, v), dtype=np.uint8)
+    else:
+        inputs = np.empty((0, spec.n_inputs), dtype=np.float32)
     labels = np.empty((0, *label_shape), dtype=label_type)
     observations = engine.reset()
     result = ImitationResult(params=network.flat_params())
@@ -199,7 +238,7 @@ def imitate(
         beta = 0.5**iteration
         new_inputs, new_labels = [], []
         for _ in range(config.steps):
-            encoded = spec.encode(observations)
+            encoded = network_inputs(spec, observations)
             teacher = oracle(observations)
             with torch.no_grad():
                 output = network(torch.as_tensor(encoded)).numpy()

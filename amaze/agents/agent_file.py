@@ -41,6 +41,7 @@ import numpy as np
 from amaze.agents.robot import RobotStringError, as_robot
 from amaze.archives import open_npz
 from amaze.errors import AmazeError
+from amaze.signals import signals_deferred
 
 __all__ = [
     "FORMAT",
@@ -156,9 +157,11 @@ def save_agent(
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, **contents)
-        os.replace(temporary, path)
+        # a stop waits for the whole file: numpy's zip writer is never left half closed
+        with signals_deferred():
+            with os.fdopen(handle, "wb") as stream:
+                np.savez(stream, **contents)
+            os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise

@@ -57,7 +57,15 @@ from amaze.agents.rewards import (
     normalized_rewards,
     pretty_rewards,
 )
-from amaze.agents.robot import ACCELERATION_SCALE, INERTIAL_LOSS, RADIUS, Robot, as_robot
+from amaze.agents.robot import (
+    ACCELERATION_SCALE,
+    CONTINUOUS_DT,
+    INERTIAL_LOSS,
+    MIN_SPEED,
+    RADIUS,
+    Robot,
+    as_robot,
+)
 from amaze.agents.tables import MazeTables, compile_mazes
 from amaze.errors import ActionError, EpisodeEndedError, OptionError
 from amaze.maze.maze import Maze, as_maze
@@ -113,10 +121,10 @@ _STEPPED_ENDED = -2
 _COLLISION = COLLISION_PENALTY
 _BACKWARD = BACKWARD_PENALTY
 _RADIUS = RADIUS
-_DAMPING = 1 - INERTIAL_LOSS * 0.1  # continuous dt = 0.1, as in the reference
+_DAMPING = 1 - INERTIAL_LOSS * CONTINUOUS_DT  # continuous dt = 0.1, as in the reference
 _ACC_SCALE = ACCELERATION_SCALE
-_DT_CONTINUOUS = 0.1
-_MIN_SPEED = min(0.01, ACCELERATION_SCALE / 2)
+_DT_CONTINUOUS = CONTINUOUS_DT
+_MIN_SPEED = MIN_SPEED
 _SQRT2 = np.sqrt(2.0)  # the corner-to-centre offset (±0.5, ±0.5) times it is a unit vector
 
 #: The engine tries its parallel kernels from this much work per step (agents

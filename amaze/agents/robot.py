@@ -39,6 +39,10 @@ MAX_VISION = 65
 RADIUS = 0.1
 INERTIAL_LOSS = 0.5
 ACCELERATION_SCALE = 0.5
+#: The time step of continuous robots (discrete ones step by 1).
+CONTINUOUS_DT = 0.1
+#: Below this speed a continuous robot stops (its velocity is set to zero).
+MIN_SPEED = min(0.01, ACCELERATION_SCALE / 2)
 
 
 class RobotStringError(AmazeError):

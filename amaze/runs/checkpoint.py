@@ -61,7 +61,7 @@ from typing import Any
 import numpy as np
 
 from amaze.archives import open_npz
-from amaze.runs.folder import signals_deferred, write_bytes
+from amaze.runs.folder import write_bytes
 from amaze.runs.state_document import (
     ArrayLookup,
     CheckpointError,
@@ -72,6 +72,7 @@ from amaze.runs.state_document import (
     package_classes,
     simplified,
 )
+from amaze.signals import signals_deferred
 from amaze.validation import parse_json
 
 __all__ = [

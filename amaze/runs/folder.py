@@ -13,24 +13,25 @@ helpers so that a run killed at any moment leaves readable files behind:
 * :class:`ProgressLog` appends one CSV row per evaluation or generation and,
   on resume, drops the rows written after the checkpoint being resumed, so the
   log of a resumed run reads as that of an uninterrupted one;
-* :func:`signals_deferred` holds Ctrl-C and SIGTERM back while a file is being
-  serialised, so that a stop lands before or after the write, never inside a
-  library's writer (whose half-closed objects would print tracebacks at exit).
+* :func:`write_folder` and the checkpoints (:mod:`amaze.runs.checkpoint`) are
+  written with Ctrl-C and SIGTERM held back (:func:`amaze.signals.signals_deferred`,
+  re-exported here), so that a stop lands before or after the write, never
+  inside a library's writer (whose half-closed objects would print tracebacks
+  at exit).
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
 import os
 import shutil
-import signal
-import threading
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from amaze.signals import signals_deferred
 
 __all__ = [
     "OLD_COLUMNS",
@@ -56,41 +57,6 @@ OLD_COLUMNS = {
     "validation_success": "validation_success_rate",
     "champion_success": "champion_success_rate",
 }
-
-
-#: The signals :func:`signals_deferred` holds back: Ctrl-C and SIGTERM.
-DEFERRED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-
-@contextlib.contextmanager
-def signals_deferred() -> Iterator[None]:
-    """Meanwhile, hold SIGINT and SIGTERM back; afterwards, deliver the first that came.
-
-    The signal is raised again once the previous handlers are back, so it acts
-    as it would have (``KeyboardInterrupt``, a ``Terminated`` of
-    :mod:`amaze.runs.command`, the default exit), only later. Off the main
-    thread, where Python runs no signal handler, nothing changes.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received: list[int] = []
-
-    def hold(signum: int, frame: object) -> None:
-        received.append(signum)
-
-    previous: dict[int, Any] = {}
-    try:
-        for signum in DEFERRED_SIGNALS:
-            handler = signal.getsignal(signum)
-            if handler is not None:  # None: a handler not set from Python, left alone
-                previous[signum] = signal.signal(signum, hold)
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        if received:
-            signal.raise_signal(received[0])
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:

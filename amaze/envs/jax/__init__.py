@@ -22,10 +22,12 @@ Adapters, loaded on first use: :class:`GymnaxMazeEnv` (``amaze.envs.jax.gymnax_e
 a gymnax ``Environment``, and :class:`UEDMazeEnv` (``amaze.envs.jax.jaxued_env``),
 jaxued's ``UnderspecifiedEnv`` whose levels are params.
 
-**Scope.** Robots with discrete actions: ``DD`` (8 floats) and the hybrid
-robots ``H5`` ... ``H65`` (``(1, v, v)`` uint8 images, channel first, as
-AMaze-v0). Continuous robots (``CC``) are not supported here; asking for one
-raises :class:`~amaze.errors.OptionError`.
+**Scope.** :class:`JaxMazeEnv` runs robots with discrete actions: ``DD`` (8
+floats) and the hybrid robots ``H5`` ... ``H65`` (``(1, v, v)`` uint8 images,
+channel first, as AMaze-v0); asking it for a continuous robot raises
+:class:`~amaze.errors.OptionError`. Continuous robots (``CC5`` ... ``CC65``)
+run in :class:`~amaze.envs.jax.continuous.JaxContinuousEnv`
+(:func:`make_continuous`), the same interface with accelerations for actions.
 
 **Installing.** ``pip install "amaze-evo[jax]"`` (JAX's CPU wheels), and
 ``"amaze-evo[jax-adapters]"`` for gymnax (1.0.1) and jaxued (0.0.1). For an
@@ -39,10 +41,14 @@ from collections.abc import Sequence
 from importlib import import_module
 from typing import Any
 
-import jax.numpy as jnp
-
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import Robot
+from amaze.envs.jax.continuous import (
+    ContinuousParams,
+    ContinuousState,
+    JaxContinuousEnv,
+    make_continuous,
+)
 from amaze.envs.jax.env import JaxMazeEnv, MazeState, _renamed_maze_env
 from amaze.envs.jax.params import (
     MazeLike,
@@ -50,21 +56,25 @@ from amaze.envs.jax.params import (
     compile_params,
     padded_size,
     stack_params,
+    tile_params,
     unstack,
 )
 from amaze.errors import OptionError
 from amaze.maze.maze import Maze
 from amaze.maze.spec import MazeSpec
-from amaze.validation import check_integer
 
 __all__ = [
+    "ContinuousParams",
+    "ContinuousState",
     "GymnaxMazeEnv",
+    "JaxContinuousEnv",
     "JaxMazeEnv",
     "MazeParams",
     "MazeState",
     "UEDMazeEnv",
     "make",
     "make_batch",
+    "make_continuous",
     "padded_size",
     "stack_params",
 ]
@@ -130,13 +140,7 @@ def make_batch(
     params = compile_params(
         mazes, env.robot, deadline_factor=deadline_factor, max_cells=max_cells, max_codes=max_codes
     )
-    n_mazes = int(params.start.shape[0])
-    if num_envs is not None:
-        num_envs = check_integer("num_envs", num_envs, minimum=1, error=OptionError)
-        if num_envs != n_mazes:
-            index = jnp.arange(num_envs) % n_mazes
-            params = MazeParams(*(value[index] for value in params))
-    return env, params
+    return env, tile_params(params, num_envs)
 
 
 def __getattr__(name: str) -> Any:

@@ -138,8 +138,57 @@ def _marker_pixels(vision: int) -> np.ndarray:
     return np.array(pixels, dtype=np.int32)
 
 
+class AutoResetSteps:
+    """gymnax's ``step_env`` and ``step`` (auto-reset) of a functional environment.
+
+    A subclass (a frozen dataclass, so that jit can hash it) defines
+    ``check_params``, ``initial_state(params)``, ``observe(state, params)``,
+    ``transition(state, action, params) -> (state, reward, terminated,
+    truncated)`` and ``episode_info(state, terminated, params)``.
+    """
+
+    @partial(jax.jit, static_argnums=0)
+    def step_env(
+        self, key: jax.Array, state: Any, action: jax.Array, params: Any
+    ) -> tuple[jax.Array, Any, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
+        """One step without restart (``key`` is not used); ``info`` as in :meth:`step`."""
+        del key
+        self.check_params(params)
+        new, reward, terminated, truncated = self.transition(state, action, params)
+        obs = self.observe(new, params)
+        info = self.episode_info(new, terminated, params)
+        info.update(terminated=terminated, truncated=truncated, final_observation=obs)
+        return obs, new, reward, terminated, truncated, info
+
+    @partial(jax.jit, static_argnums=0)
+    def step(
+        self, key: jax.Array, state: Any, action: jax.Array, params: Any
+    ) -> tuple[jax.Array, Any, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
+        """One step, restarting an ended episode in the same step (gymnax's auto-reset).
+
+        Returns ``(obs, state, reward, terminated, truncated, info)``; after an
+        ending step, ``obs`` and ``state`` are the new episode's first, and
+        ``info`` holds the ending step's ``final_observation``, ``terminated``,
+        ``truncated`` and episode figures (the subclass's ``episode_info``).
+        ``key`` is not used: the environment is deterministic.
+        """
+        del key
+        self.check_params(params)
+        ended, reward, terminated, truncated = self.transition(state, action, params)
+        done = terminated | truncated
+        fresh = self.initial_state(params)
+        state = jax.tree.map(lambda new, old: jnp.where(done, new, old), fresh, ended)
+        info = self.episode_info(ended, terminated, params)
+        info.update(
+            terminated=terminated,
+            truncated=truncated,
+            final_observation=self.observe(ended, params),
+        )
+        return self.observe(state, params), state, reward, terminated, truncated, info
+
+
 @dataclass(frozen=True)
-class JaxMazeEnv:
+class JaxMazeEnv(AutoResetSteps):
     """AMaze for one robot with discrete actions, as a functional JAX environment.
 
     Made by :func:`~amaze.envs.jax.make` or :func:`~amaze.envs.jax.make_batch`
@@ -307,46 +356,6 @@ class JaxMazeEnv:
             "pretty_reward": pretty,
             "normalized_reward": normalized,
         }
-
-    @partial(jax.jit, static_argnums=0)
-    def step_env(
-        self, key: jax.Array, state: MazeState, action: jax.Array, params: MazeParams
-    ) -> tuple[jax.Array, MazeState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
-        """One step without restart (``key`` is not used); ``info`` as in :meth:`step`."""
-        del key
-        self.check_params(params)
-        new, reward, terminated, truncated = self.transition(state, action, params)
-        obs = self.observe(new, params)
-        info = self.episode_info(new, terminated, params)
-        info.update(terminated=terminated, truncated=truncated, final_observation=obs)
-        return obs, new, reward, terminated, truncated, info
-
-    @partial(jax.jit, static_argnums=0)
-    def step(
-        self, key: jax.Array, state: MazeState, action: jax.Array, params: MazeParams
-    ) -> tuple[jax.Array, MazeState, jax.Array, jax.Array, jax.Array, dict[str, Any]]:
-        """One step, restarting an ended episode in the same step (gymnax's auto-reset).
-
-        Returns ``(obs, state, reward, terminated, truncated, info)``; after an
-        ending step, ``obs`` and ``state`` are the new episode's first, and
-        ``info`` holds the ending step's ``final_observation``, ``terminated``,
-        ``truncated`` and episode figures (see the module docstring). ``key`` is
-        not used: the environment is deterministic.
-        """
-        del key
-        self.check_params(params)
-        ended, reward, terminated, truncated = self.transition(state, action, params)
-        done = terminated | truncated
-        zero = jnp.zeros_like(ended.time)
-        fresh = MazeState(params.start, zero, zero, zero, zero)
-        state = jax.tree.map(lambda new, old: jnp.where(done, new, old), fresh, ended)
-        info = self.episode_info(ended, terminated, params)
-        info.update(
-            terminated=terminated,
-            truncated=truncated,
-            final_observation=self.observe(ended, params),
-        )
-        return self.observe(state, params), state, reward, terminated, truncated, info
 
     # -- host-side helpers ------------------------------------------------------------
 

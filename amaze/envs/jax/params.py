@@ -36,7 +36,7 @@ least :data:`MIN_CODES`; give both to keep one shape across batches.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -313,6 +313,19 @@ def stack_params(
     sizes = [padded_size(MazeParams(**row)) for row in rows]
     cells, codes = _padded_sizes(sizes, max_cells, max_codes)
     return _stack([_pad(row, robot, cells, codes) for row in rows])
+
+
+def tile_params(params: Any, num_envs: int | None) -> Any:
+    """Params of ``num_envs`` environments from a batch of ``M`` mazes: env ``k`` gets maze
+    ``k % M`` (``None``: one environment per maze). Any params NamedTuple with a leading axis."""
+    n_mazes = int(params.start.shape[0])
+    if num_envs is None:
+        return params
+    num_envs = check_integer("num_envs", num_envs, minimum=1, error=OptionError)
+    if num_envs == n_mazes:
+        return params
+    index = jnp.arange(num_envs) % n_mazes
+    return type(params)(*(value[index] for value in params))
 
 
 def unstack(params: MazeParams) -> MazeParams:

@@ -20,6 +20,7 @@ import pytest
 from amaze.errors import AmazeError
 from amaze.runs.checkpoint import CheckpointError, StateCodec, read_checkpoint, write_checkpoint
 from tests.run_folders import load_tool
+from tests.stops import stop_inside
 
 
 class Colour(enum.Enum):
@@ -303,31 +304,9 @@ def test_a_stop_during_the_write_lands_after_a_whole_checkpoint(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sent: int
 ) -> None:
     """Ctrl-C or SIGTERM inside numpy's zip writer waits for the write, then stops the run."""
-
-    class Stopped(Exception):
-        pass
-
-    def stop(signum: int, frame: object) -> None:
-        raise Stopped(signum)
-
-    real_savez = np.savez_compressed
-    reached: list[str] = []
-
-    def savez_interrupted(*args: Any, **kwargs: Any) -> None:
-        os.kill(os.getpid(), sent)  # lands in the middle of the serialisation
-        reached.append("after the signal")
-        real_savez(*args, **kwargs)
-
-    monkeypatch.setattr(np, "savez_compressed", savez_interrupted)
-    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        with pytest.raises(Stopped) as stopped:
-            write_checkpoint(tmp_path / "state.npz", _state(), CODEC)
-        assert stopped.value.args == (sent,)
-        assert reached == ["after the signal"]
-        assert signal.getsignal(signal.SIGINT) is stop and signal.getsignal(signal.SIGTERM) is stop
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+    path = tmp_path / "state.npz"
+    stop_inside(
+        monkeypatch, np, "savez_compressed", sent, lambda: write_checkpoint(path, _state(), CODEC)
+    )
     restored = read_checkpoint(tmp_path / "state.npz", CODEC, AmazeError, expected=State)
     assert np.array_equal(restored.weights, _state().weights)

@@ -5,13 +5,11 @@ from __future__ import annotations
 import csv
 import json
 import os
-import signal
-import threading
 from pathlib import Path
 
 import pytest
 
-from amaze.runs.folder import settled_folder, signals_deferred, write_folder, write_rows
+from amaze.runs.folder import settled_folder, write_folder, write_rows
 from tests.amaze.runs.test_curriculum import CONFIG, choices
 from tests.amaze.runs.toy_curriculum import ToyError, ToyLearner, ToyRun
 
@@ -120,26 +118,3 @@ def test_write_rows_writes_csv_whole_and_in_place(tmp_path: Path) -> None:
     write_rows(path, rows[1:])  # replaced, not appended; no temporary file left
     assert path.read_text(encoding="utf-8").splitlines() == ["agent,score", "c,1"]
     assert sorted(p.name for p in path.parent.iterdir()) == ["rows.csv"]
-
-
-def test_signals_deferred_delivers_ctrl_c_after_the_block() -> None:
-    done = []
-    with pytest.raises(KeyboardInterrupt):
-        with signals_deferred():
-            os.kill(os.getpid(), signal.SIGINT)
-            done.append("the block went on")
-    assert done == ["the block went on"]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-
-
-def test_signals_deferred_changes_nothing_off_the_main_thread() -> None:
-    seen = []
-
-    def body() -> None:
-        with signals_deferred():
-            seen.append(signal.getsignal(signal.SIGINT))
-
-    thread = threading.Thread(target=body)
-    thread.start()
-    thread.join()
-    assert seen == [signal.default_int_handler]

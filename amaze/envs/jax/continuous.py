@@ -38,6 +38,7 @@ function called with params of the same padded size never recompiles.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import partial
@@ -220,7 +221,8 @@ class JaxContinuousEnv(AutoResetSteps):
             )
         v = self.robot.vision
         rows, cols = params.canvas.shape
-        if rows % v or cols % v or params.canvas.dtype != jnp.uint8:
+        side = math.isqrt(params.walls.shape[0])  # walls: max_side x max_side cells
+        if rows != (side + 2) * v or cols != rows or params.canvas.dtype != jnp.uint8:
             raise OptionError(
                 f"params with a canvas {params.canvas.dtype}{[rows, cols]} are not made for"
                 f" robot {self.robot}: make them with the same robot"

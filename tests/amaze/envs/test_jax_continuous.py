@@ -180,6 +180,9 @@ def test_params_pad_mazes_and_refuse_what_does_not_fit() -> None:
     env = JaxContinuousEnv("CC7")
     with pytest.raises(OptionError, match=r"jax\.vmap"):
         env.reset(jax.random.key(0), compile_continuous_params(MAZES[:2], "CC7"))
-    one = jax.tree.map(lambda a: a[0], compile_continuous_params(MAZES[:1], "CC5"))
-    with pytest.raises(OptionError, match="not made for robot CC7"):
-        env.reset(jax.random.key(0), one)
+    for side in (4, 5):  # a CC5 canvas of 7 x 5 = 35 pixels a side is a multiple of 7 too
+        one = jax.tree.map(
+            lambda a: a[0], compile_continuous_params(MAZES[:1], "CC5", max_side=side)
+        )
+        with pytest.raises(OptionError, match="not made for robot CC7"):
+            env.reset(jax.random.key(0), one)

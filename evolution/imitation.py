@@ -49,7 +49,8 @@ __all__ = ["ImitationConfig", "ImitationResult", "imitate", "network_inputs", "t
 TEACHER_GAIN = 2.0
 TEACHER_DAMPING = 0.0
 #: Bounds of the config's counts: ``max_samples`` keeps the samples held in memory
-#: under about 9 GB for a 15 x 15 image read pixel by pixel (225 float32 inputs).
+#: under about 9 GB for a 15 x 15 image read pixel by pixel (225 float32 inputs; a
+#: convolutional network keeps the uint8 images, a quarter of that).
 _MAXIMA = {
     "iterations": 1000, "agents": 1 << 16, "steps": 100_000, "updates": 1_000_000,
     "batch": 1 << 20, "max_samples": 10_000_000,

@@ -317,7 +317,8 @@ class TrainConfig(RegimeConfig):
         """The jax framework: its regimes, its robots, no TensorBoard, its hyperparameters.
 
         What the JAX learners do not implement is refused, never ignored: robots with
-        continuous actions, TensorBoard logs, and SB3 hyperparameters they
+        continuous actions without a network spec (SB3's policy is not offered for
+        them, :mod:`rl_baselines.jax.spec`), TensorBoard logs, and SB3 hyperparameters they
         lack or values they do not take
         (:func:`~rl_baselines.jax.hyperparameters.checked_hyperparameters`:
         ``use_sde``, schedules, other rollout buffers...).
@@ -340,10 +341,11 @@ class TrainConfig(RegimeConfig):
                 )
             return
         robot = as_robot(self.robot)
-        if not robot.discrete_outputs:
+        if not robot.discrete_outputs and self.network is None:
             raise RLConfigError(
-                f"robot {self.robot} has continuous actions: framework jax (--framework jax)"
-                " trains robots with discrete actions only (DD, H5 ... H65)"
+                f"robot {self.robot} has continuous actions: framework jax trains them with a"
+                ' network spec (give the config a network, e.g. {"hidden": [16],'
+                ' "symmetry": "rotations"})'
             )
         if self.tensorboard:
             raise RLConfigError(

@@ -50,7 +50,8 @@ class JaxAgent:
         self.num_timesteps = trainer.num_timesteps
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
-        """Deterministic actions for a batch of observations (int64 ``(n,)``)."""
+        """Deterministic actions for a batch of observations (int64 ``(n,)``, or a
+        continuous robot's float64 ``(n, 2)`` accelerations)."""
         return self.policy(observations)
 
     def params(self) -> dict[str, dict[str, np.ndarray]]:
@@ -89,7 +90,8 @@ class NetworkAgent:
         self.num_timesteps = num_timesteps
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
-        """Deterministic actions for a batch of observations (int64 ``(n,)``)."""
+        """Deterministic actions for a batch of observations (int64 ``(n,)``, or a
+        continuous robot's float64 ``(n, 2)`` accelerations)."""
         return self.policy(observations)
 
     def save(self, path: str | os.PathLike) -> Path:

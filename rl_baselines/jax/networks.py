@@ -54,6 +54,16 @@ the spec's activation; with rotations, ``action_net`` and ``value_net`` have
 one output, scored on each of the four turned views (the logits of the four
 directions; the value their mean); a convolution reads the image turned
 ``d`` quarter-turns clockwise for direction ``d``.
+
+**Continuous robots** (``network`` kind only, :mod:`rl_baselines.jax.spec`):
+:func:`apply` gives the Gaussian's mean, the accelerations evolution's network
+of the same spec outputs (``tanh`` of ``action_net``'s 2 outputs, or with
+rotations ``(tanh(s_E - s_W), tanh(s_N - s_S))``), and ``params["log_std"]``
+holds SB3's ``log_std`` (``{"data": (2,)}``, zeros at the start). Actions are
+drawn as SB3's ``DiagGaussianDistribution`` draws them (``mean + std * eps``,
+kept unclipped for the log-probability; the environment clips them to
+[-1, 1]); log-probabilities and entropies are torch's ``Normal``'s summed
+over the two dimensions (:func:`action_log_prob`, :func:`action_entropy`).
 """
 
 from __future__ import annotations
@@ -64,12 +74,25 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from rl_baselines.jax.spec import CONV1, CONV2, FILTERS, LINEAR, N_ACTIONS, PolicySpec
+from rl_baselines.jax.spec import (
+    CONV1,
+    CONV2,
+    FILTERS,
+    LINEAR,
+    LOG_STD,
+    N_ACCELERATIONS,
+    N_ACTIONS,
+    PolicySpec,
+    accelerations,
+)
 
 __all__ = [
     "N_ACTIONS",
     "Params",
     "PolicySpec",
+    "accelerations",
+    "action_entropy",
+    "action_log_prob",
     "apply",
     "as_numpy",
     "deterministic_actions",
@@ -77,6 +100,7 @@ __all__ = [
     "init_params",
     "log_probabilities",
     "predict_values",
+    "sample_actions",
 ]
 
 Params = dict[str, dict[str, jax.Array]]
@@ -107,13 +131,16 @@ def init_params(spec: PolicySpec, key: jax.Array) -> Params:
     """
     seed = np.asarray(jax.random.key_data(key)).astype(np.uint32).ravel().tolist()
     rng = np.random.default_rng(np.random.SeedSequence(seed))
-    return {
+    params = {
         module: {
             "weight": jnp.asarray(_orthogonal(rng, shape, spec.gain(module))),
             "bias": jnp.zeros((shape[0],), jnp.float32),
         }
         for module, shape in spec.layer_shapes().items()
     }
+    if spec.continuous:  # SB3's log_std_init = 0
+        params[LOG_STD] = {"data": jnp.zeros((N_ACCELERATIONS,), jnp.float32)}
+    return params
 
 
 def _linear(layer: dict[str, jax.Array], x: jax.Array) -> jax.Array:
@@ -219,12 +246,18 @@ def _values(spec: PolicySpec, params: Params, features: jax.Array) -> jax.Array:
 
 
 def apply(spec: PolicySpec, params: Params, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """``(logits (n, 4), values (n,))`` of a batch of observations (SB3's ``forward``)."""
+    """``(logits (n, 4), values (n,))`` of a batch of observations (SB3's ``forward``).
+
+    A continuous robot's policy gives its Gaussian's mean, ``(n, 2)``, instead
+    of logits (:func:`accelerations`).
+    """
     features = _features(spec, params, obs)
-    logits = _linear(params["action_net"], _mlp(spec, params, "policy_net", features))
+    outputs = _linear(params["action_net"], _mlp(spec, params, "policy_net", features))
     if spec.copies == 4:
-        logits = logits[..., 0]
-    return logits, _values(spec, params, features)
+        outputs = outputs[..., 0]
+    if spec.continuous:
+        outputs = accelerations(spec, outputs, jnp)
+    return outputs, _values(spec, params, features)
 
 
 def predict_values(spec: PolicySpec, params: Params, obs: jax.Array) -> jax.Array:
@@ -245,6 +278,50 @@ def entropy(log_probs: jax.Array) -> jax.Array:
 def deterministic_actions(logits: jax.Array) -> jax.Array:
     """SB3's ``CategoricalDistribution.mode``: ``argmax`` of the probabilities (first on ties)."""
     return jnp.argmax(jax.nn.softmax(logits, axis=-1), axis=-1)
+
+
+def _gaussian_scale(params: Params) -> tuple[jax.Array, jax.Array]:
+    """SB3's ``action_std = exp(log_std)`` and torch ``Normal``'s ``log(scale)``."""
+    scale = jnp.exp(params[LOG_STD]["data"])
+    return scale, jnp.log(scale)
+
+
+def action_log_prob(
+    spec: PolicySpec, params: Params, outputs: jax.Array, actions: jax.Array
+) -> jax.Array:
+    """``(n,)`` log-probabilities of ``actions`` under the distribution of :func:`apply`'s
+    ``outputs``: a categorical's (logits), or the diagonal Gaussian's (mean), torch's
+    ``Normal.log_prob`` summed over the two dimensions."""
+    if not spec.continuous:
+        log_probs = log_probabilities(outputs)
+        return jnp.take_along_axis(log_probs, actions[:, None].astype(jnp.int32), axis=1)[:, 0]
+    scale, log_scale = _gaussian_scale(params)
+    log_prob = -((actions - outputs) ** 2) / (2 * scale**2) - log_scale - np.log(np.sqrt(2 * np.pi))
+    return jnp.sum(log_prob, axis=1)
+
+
+def action_entropy(spec: PolicySpec, params: Params, outputs: jax.Array) -> jax.Array:
+    """``(n,)`` entropies of the distributions of :func:`apply`'s ``outputs`` (torch's
+    ``Categorical.entropy``, or ``Normal.entropy`` summed over the two dimensions)."""
+    if not spec.continuous:
+        return entropy(log_probabilities(outputs))
+    _, log_scale = _gaussian_scale(params)
+    per_dimension = 0.5 + 0.5 * np.log(2 * np.pi) + log_scale
+    return jnp.broadcast_to(jnp.sum(per_dimension), outputs.shape[:1])
+
+
+def sample_actions(
+    spec: PolicySpec, params: Params, outputs: jax.Array, key: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Actions drawn from the distributions of :func:`apply`'s ``outputs``, with their
+    log-probabilities: int32 ``(n,)`` (categorical), or float32 ``(n, 2)``
+    (``mean + std * eps``, not clipped: the environment clips them)."""
+    if not spec.continuous:
+        actions = jax.random.categorical(key, outputs).astype(jnp.int32)
+    else:
+        scale, _ = _gaussian_scale(params)
+        actions = outputs + scale * jax.random.normal(key, outputs.shape, outputs.dtype)
+    return actions, action_log_prob(spec, params, outputs, actions)
 
 
 def as_numpy(params: Any) -> dict[str, dict[str, np.ndarray]]:

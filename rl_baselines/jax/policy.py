@@ -3,7 +3,8 @@
 :class:`NumpyPolicy` maps a batch of observations in the ``AMaze-v0`` format
 (float32 ``(n, 8)`` or uint8 ``(n, 1, v, v)``) to the deterministic actions of
 SB3's ``predict(obs, deterministic=True)``: the ``argmax`` of the action
-probabilities (SB3's ``CategoricalDistribution.mode``), as int64 ``(n,)``. It
+probabilities (SB3's ``CategoricalDistribution.mode``), as int64 ``(n,)``; a
+continuous robot's mean accelerations, float64 ``(n, 2)``. It
 has a ``robot`` attribute, so :class:`amaze.evaluation.protocol.Evaluator` and
 :func:`amaze.evaluation.policy.run_episodes` take it as they take an
 :class:`~rl_baselines.agent.SB3Agent`.
@@ -23,7 +24,7 @@ import numpy as np
 
 from amaze.agents.robot import Robot
 from rl_baselines import RLConfigError
-from rl_baselines.jax.spec import CONV1, CONV2, FILTERS, LINEAR, PolicySpec
+from rl_baselines.jax.spec import CONV1, CONV2, FILTERS, LINEAR, PolicySpec, accelerations
 
 __all__ = ["NumpyPolicy"]
 
@@ -127,7 +128,9 @@ class NumpyPolicy:
         return x
 
     def logits(self, observations: np.ndarray) -> np.ndarray:
-        """``(n, 4)`` float32 logits of a batch of observations (the actor alone)."""
+        """``(n, 4)`` float32 logits of a batch of observations (the actor alone); a
+        continuous robot's ``action_net`` outputs before their tanh (``(n, 2)``, or with
+        rotations the four directions' scores)."""
         features = self._features(observations)
         latent_pi = self._mlp("policy_net", len(self.spec.net_pi), features)
         logits = _linear(self.params["action_net"], latent_pi)
@@ -143,8 +146,11 @@ class NumpyPolicy:
         return self.logits(observations), values
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
-        """Deterministic actions (int64 ``(n,)``): the most probable one (first on ties)."""
+        """Deterministic actions: int64 ``(n,)``, the most probable one (first on ties);
+        a continuous robot's float64 ``(n, 2)`` accelerations, its Gaussian's mean."""
         logits = self.logits(observations)
+        if self.spec.continuous:
+            return accelerations(self.spec, logits, np).astype(np.float64)
         shifted = np.exp(logits - logits.max(axis=1, keepdims=True))
         probabilities = shifted / shifted.sum(axis=1, keepdims=True)
         return probabilities.argmax(axis=1).astype(np.int64)

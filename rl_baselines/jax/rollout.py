@@ -2,9 +2,12 @@
 
 Each step (``OnPolicyAlgorithm.collect_rollouts``, ``common/on_policy_algorithm.py``):
 the policy gives logits and values of the last observations; actions are drawn
-from the categorical distribution (an explicit key per step); all environments
-step together (``vmap`` of :meth:`amaze.envs.jax.JaxMazeEnv.step`, which restarts
-an ended episode in the same step); an episode that ends by its deadline
+from the categorical distribution (an explicit key per step; a continuous
+robot's from its Gaussian, stored as drawn and clipped to [-1, 1] for the
+environment, as SB3 clips a ``Box`` action); all environments
+step together (``vmap`` of :meth:`amaze.envs.jax.JaxMazeEnv.step`, or
+:meth:`amaze.envs.jax.JaxContinuousEnv.step`, which restart an ended episode
+in the same step); an episode that ends by its deadline
 without success (``TimeLimit.truncated`` in :class:`rl_baselines.vec_env.SB3VecEnv`)
 gets SB3's bootstrap ``reward += gamma * V(final observation)`` (SB3 issue #633);
 the buffer stores the observations, actions, rewards, ``episode_starts`` (the
@@ -30,17 +33,30 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from amaze.envs.jax import JaxMazeEnv, MazeParams, MazeState
+from amaze.envs.jax import (
+    ContinuousParams,
+    ContinuousState,
+    JaxContinuousEnv,
+    JaxMazeEnv,
+    MazeParams,
+    MazeState,
+)
 from rl_baselines.jax.hyperparameters import Hyperparameters
 from rl_baselines.jax.networks import (
     Params,
     PolicySpec,
     apply,
-    log_probabilities,
     predict_values,
+    sample_actions,
 )
 
 __all__ = ["EnvCarry", "EpisodeSums", "Rollout", "collect_rollout", "reset_envs"]
+
+#: The environments a rollout steps: a discrete robot's or a continuous one's, with
+#: their params and states.
+Env = JaxMazeEnv | JaxContinuousEnv
+EnvParams = MazeParams | ContinuousParams
+EnvState = MazeState | ContinuousState
 
 
 class EnvCarry(NamedTuple):
@@ -51,7 +67,7 @@ class EnvCarry(NamedTuple):
     ``episodes``: episodes each one has ended since the reset (which maze comes next).
     """
 
-    state: MazeState
+    state: EnvState
     observations: jax.Array
     episode_starts: jax.Array
     maze_index: jax.Array
@@ -80,18 +96,18 @@ class EpisodeSums(NamedTuple):
     reward: jax.Array
 
 
-def _gather(maze_params: MazeParams, index: jax.Array) -> MazeParams:
+def _gather(maze_params: EnvParams, index: jax.Array) -> EnvParams:
     """The params of maze ``index[k]`` for each environment ``k``."""
     return jax.tree.map(lambda table: table[index], maze_params)
 
 
-def _restart(env: JaxMazeEnv, params: MazeParams) -> tuple[MazeState, jax.Array]:
+def _restart(env: Env, params: EnvParams) -> tuple[EnvState, jax.Array]:
     """The first state and observation of an episode in each environment's maze."""
     state = jax.vmap(env.initial_state)(params)
     return state, jax.vmap(env.observe)(state, params)
 
 
-def reset_envs(env: JaxMazeEnv, maze_params: MazeParams, n_envs: int) -> EnvCarry:
+def reset_envs(env: Env, maze_params: EnvParams, n_envs: int) -> EnvCarry:
     """Every environment at the start of an episode: env ``k`` in maze ``k % M``.
 
     As ``SB3VecEnv.reset``.
@@ -104,12 +120,12 @@ def reset_envs(env: JaxMazeEnv, maze_params: MazeParams, n_envs: int) -> EnvCarr
 
 
 def _next_mazes(
-    env: JaxMazeEnv,
-    maze_params: MazeParams,
-    params: MazeParams,
+    env: Env,
+    maze_params: EnvParams,
+    params: EnvParams,
     carry: EnvCarry,
     done: jax.Array,
-) -> tuple[MazeParams, EnvCarry]:
+) -> tuple[EnvParams, EnvCarry]:
     """Environments whose episode ended move to their next maze (``SB3VecEnv._next_mazes``).
 
     ``carry`` holds the state and observations after the step (restarted in the
@@ -121,7 +137,7 @@ def _next_mazes(
     following = (jnp.arange(n_envs, dtype=jnp.int32) + carry.episodes * n_envs) % n_mazes
     index = jnp.where(done, following, carry.maze_index)
 
-    def move(_: None) -> tuple[MazeParams, MazeState, jax.Array]:
+    def move(_: None) -> tuple[EnvParams, EnvState, jax.Array]:
         new_params = _gather(maze_params, index)
         fresh, observations = _restart(env, new_params)
 
@@ -131,7 +147,7 @@ def _next_mazes(
         state = jax.tree.map(pick, fresh, carry.state)
         return new_params, state, pick(observations, carry.observations)
 
-    def stay(_: None) -> tuple[MazeParams, MazeState, jax.Array]:
+    def stay(_: None) -> tuple[EnvParams, EnvState, jax.Array]:
         return params, carry.state, carry.observations
 
     params, state, observations = jax.lax.cond(jnp.any(done), move, stay, None)
@@ -154,11 +170,11 @@ def _episode_sums(info: dict[str, jax.Array], done: jax.Array) -> EpisodeSums:
 
 
 def collect_rollout(
-    env: JaxMazeEnv,
+    env: Env,
     spec: PolicySpec,
     hp: Hyperparameters,
     policy: Params,
-    maze_params: MazeParams,
+    maze_params: EnvParams,
     carry: EnvCarry,
     key: jax.Array,
 ) -> tuple[EnvCarry, Rollout, jax.Array, EpisodeSums]:
@@ -173,14 +189,14 @@ def collect_rollout(
     step_env = jax.vmap(env.step, in_axes=(None, 0, 0, 0))
 
     def one_step(
-        loop: tuple[EnvCarry, MazeParams, EpisodeSums], step_key: jax.Array
-    ) -> tuple[tuple[EnvCarry, MazeParams, EpisodeSums], Rollout]:
+        loop: tuple[EnvCarry, EnvParams, EpisodeSums], step_key: jax.Array
+    ) -> tuple[tuple[EnvCarry, EnvParams, EpisodeSums], Rollout]:
         carry, params, sums = loop
-        logits, values = apply(spec, policy, carry.observations)
-        actions = jax.random.categorical(step_key, logits).astype(jnp.int32)
-        log_prob = jnp.take_along_axis(log_probabilities(logits), actions[:, None], axis=1)[:, 0]
+        outputs, values = apply(spec, policy, carry.observations)
+        actions, log_prob = sample_actions(spec, policy, outputs, step_key)
+        moves = jnp.clip(actions, -1.0, 1.0) if spec.continuous else actions
         observations, state, reward, terminated, truncated, info = step_env(
-            step_key, carry.state, actions, params
+            step_key, carry.state, moves, params
         )
         done = terminated | truncated
         timeout = truncated & ~terminated  # SB3VecEnv's TimeLimit.truncated

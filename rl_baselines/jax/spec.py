@@ -20,6 +20,16 @@ Two kinds of policy:
   four turned values, so invariant under turns). The actor is exactly an
   evolved network of the same spec: an agent is saved as an evolved agent's
   file (:meth:`PolicySpec.architecture`, :meth:`PolicySpec.actor_vector`).
+
+**Continuous robots** (``CC<v>``: accelerations out) have a ``network`` kind
+policy only. Its actor is evolution's: ``action_net`` gives 2 outputs squashed
+by tanh (with rotations its single output per turned view, the acceleration
+``(tanh(s_E - s_W), tanh(s_N - s_S))``), the mean of SB3's diagonal Gaussian
+(``DiagGaussianDistribution``), whose log standard deviations are one more
+parameter, :data:`LOG_STD` (SB3's ``log_std``, 0 at the start: a standard
+deviation of 1). The deterministic action is the mean, what the evolved
+network of the same spec does; an SB3 policy (a linear mean, no squash) is not
+offered, so that every agent it trains is an evolved agent's file.
 """
 
 from __future__ import annotations
@@ -54,13 +64,20 @@ __all__ = [
     "FILTERS",
     "KINDS",
     "LINEAR",
+    "LOG_STD",
+    "N_ACCELERATIONS",
     "N_ACTIONS",
     "PolicySpec",
+    "accelerations",
     "network_spec",
 ]
 
 #: Discrete actions of AMaze's robots: E, N, W, S.
 N_ACTIONS = 4
+#: A continuous robot's action: its acceleration (x east, y north).
+N_ACCELERATIONS = 2
+#: The Gaussian's log standard deviations of a continuous robot's policy (SB3's name).
+LOG_STD = "log_std"
 #: SB3's initialisation gains (``ActorCriticPolicy._build``).
 GAIN_HIDDEN = float(np.sqrt(2))
 GAIN_ACTION = 0.01
@@ -91,7 +108,7 @@ NETWORK_KEYS: tuple[str, ...] = (
 class PolicySpec:
     """The architecture of one policy: robot, MLP layers, inputs (hashable, static).
 
-    ``robot`` is a robot string with discrete actions (``DD`` or ``H<v>``);
+    ``robot`` is a robot string: ``DD``, ``H<v>``, or ``CC<v>`` with a ``network`` kind;
     ``net_pi`` / ``net_vf`` the hidden widths of the policy and value MLPs;
     ``features_dim`` the CNN's output width (``sb3`` kind, hybrid robots);
     ``kind``, ``activation``, ``symmetry``, ``pool``, ``pooling``, ``filters``
@@ -125,10 +142,29 @@ class PolicySpec:
                 "an SB3 policy has tanh, no symmetry, no pool and no filters (a network spec"
                 " gives them)"
             )
+        if self.kind == "sb3" and self.continuous:
+            raise RLConfigError(
+                f"robot {self.robot} has continuous actions: the JAX learners train them with"
+                ' a network spec (give the config a network, e.g. {"hidden": [16],'
+                ' "symmetry": "rotations"})'
+            )
 
     @property
     def parsed_robot(self) -> Robot:
         return as_robot(self.robot)
+
+    @property
+    def continuous(self) -> bool:
+        """Whether the robot's actions are accelerations (a Gaussian policy), not E/N/W/S."""
+        return not self.parsed_robot.discrete_outputs
+
+    @property
+    def n_action_outputs(self) -> int:
+        """Outputs of ``action_net``: 1 with rotations (a score per turned view), else 2
+        (accelerations) or 4 (logits)."""
+        if self.copies == 4:
+            return 1
+        return N_ACCELERATIONS if self.continuous else N_ACTIONS
 
     @property
     def images(self) -> bool:
@@ -218,8 +254,7 @@ class PolicySpec:
             for i, size in enumerate(layers):
                 shapes[f"mlp_extractor.{net}.{2 * i}"] = (size, previous)
                 previous = size
-        actions = 1 if self.copies == 4 else N_ACTIONS
-        shapes["action_net"] = (actions, self.net_pi[-1] if self.net_pi else width)
+        shapes["action_net"] = (self.n_action_outputs, self.net_pi[-1] if self.net_pi else width)
         shapes["value_net"] = (1, self.net_vf[-1] if self.net_vf else width)
         return shapes
 
@@ -297,6 +332,18 @@ class PolicySpec:
         return layers
 
 
+def accelerations(spec: PolicySpec, outputs: Any, xp: Any) -> Any:
+    """A continuous robot's ``(n, 2)`` accelerations from ``action_net``'s outputs.
+
+    ``tanh`` of the 2 outputs, or with rotations (the four directions' scores
+    ``(n, 4)``, E N W S) ``(tanh(s_E - s_W), tanh(s_N - s_S))``: evolution's
+    network of the same spec. ``xp``: ``jax.numpy`` or numpy.
+    """
+    if spec.copies == 4:
+        outputs = xp.stack([outputs[:, 0] - outputs[:, 2], outputs[:, 1] - outputs[:, 3]], axis=1)
+    return xp.tanh(outputs)
+
+
 def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
     """The ``network`` kind's spec of a config's ``network`` for ``robot``, every value checked.
 
@@ -317,8 +364,6 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
             f"network key(s) {named}: the RL learners' networks take {', '.join(NETWORK_KEYS)}"
         )
     parsed = as_robot(robot)
-    if not parsed.discrete_outputs:
-        raise RLConfigError(f"robot {parsed}: the RL learners act with discrete actions only")
     hidden = network.get("hidden", [])
     if isinstance(hidden, int) and not isinstance(hidden, bool):
         hidden = [hidden]

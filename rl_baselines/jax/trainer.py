@@ -21,6 +21,7 @@ numpy arrays; the policy (:meth:`~JaxTrainer.policy`); SB3 zips out and in
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -34,7 +35,8 @@ import numpy as np
 
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
 from amaze.agents.robot import as_robot
-from amaze.envs.jax import JaxMazeEnv, MazeParams, make_batch
+from amaze.envs.jax import JaxContinuousEnv, JaxMazeEnv, make_batch
+from amaze.envs.jax.continuous import compile_continuous_params
 from amaze.errors import AmazeError
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
@@ -56,7 +58,7 @@ from rl_baselines.jax.networks import (
 )
 from rl_baselines.jax.optim import OptState, init_optimizer
 from rl_baselines.jax.policy import NumpyPolicy
-from rl_baselines.jax.rollout import EnvCarry, collect_rollout, reset_envs
+from rl_baselines.jax.rollout import Env, EnvCarry, EnvParams, collect_rollout, reset_envs
 from rl_baselines.jax.spec import network_spec
 from rl_baselines.jax.storage import check_state_values
 from rl_baselines.jax.update import (
@@ -128,12 +130,12 @@ class RolloutStats(NamedTuple):
 class Static:
     """What the compiled functions specialise on: environment, policy, hyperparameters."""
 
-    env: JaxMazeEnv
+    env: Env
     spec: PolicySpec
     hp: Hyperparameters
 
 
-def init_state(static: Static, maze_params: MazeParams, seed: int) -> TrainState:
+def init_state(static: Static, maze_params: EnvParams, seed: int) -> TrainState:
     """A fresh run from ``seed``: SB3's initial policy and optimizer, every env reset."""
     key, init_key = jax.random.split(jax.random.key(seed))
     params = init_params(static.spec, init_key)
@@ -173,7 +175,7 @@ def _batch(static: Static, rollout: Any, last_values: jax.Array, dones: jax.Arra
 
 
 def train_step(
-    static: Static, maze_params: MazeParams, state: TrainState
+    static: Static, maze_params: EnvParams, state: TrainState
 ) -> tuple[TrainState, RolloutStats]:
     """One rollout and one update (SB3's ``collect_rollouts`` then ``train``)."""
     hp = static.hp
@@ -207,7 +209,7 @@ def train_step(
 
 @partial(jax.jit, static_argnums=(0, 1))
 def run_rollouts(
-    static: Static, k: int, maze_params: MazeParams, state: TrainState, count: jax.Array
+    static: Static, k: int, maze_params: EnvParams, state: TrainState, count: jax.Array
 ) -> tuple[TrainState, RolloutStats]:
     """The first ``count`` (<= ``k``) of ``k`` rollouts and updates in one ``lax.scan``.
 
@@ -288,12 +290,15 @@ class JaxTrainer:
     through them when ``M > n_envs``, as :class:`rl_baselines.vec_env.SB3VecEnv`);
     ``seed`` seeds everything. ``max_cells`` / ``max_codes`` pad the mazes'
     tables (:mod:`amaze.envs.jax.params`) so that later mazes of other sizes
-    (:meth:`set_mazes`) reuse the compiled code. ``chunk_steps``: env steps
-    one compiled call covers at most (a power of two of rollouts, at least
-    one): Python is visited once per chunk. ``network``: a network spec
+    (:meth:`set_mazes`) reuse the compiled code; a continuous robot's mazes
+    (:class:`~amaze.envs.jax.JaxContinuousEnv`) are padded to a square of
+    ``isqrt(max_cells)`` cells a side, and ``max_codes`` is refused. ``chunk_steps``:
+    env steps one compiled call covers at most (a power of two of rollouts, at
+    least one): Python is visited once per chunk. ``network``: a network spec
     (:func:`~rl_baselines.jax.spec.network_spec`: evolution's ``hidden``,
-    ``activation``, ``pool``, ``symmetry``) instead of SB3's policy. Bad
-    values raise :class:`RLConfigError`.
+    ``activation``, ``pool``, ``symmetry``) instead of SB3's policy (a
+    continuous robot's policy needs one: a Gaussian over evolution's
+    accelerations). Bad values raise :class:`RLConfigError`.
     """
 
     def __init__(
@@ -313,9 +318,14 @@ class JaxTrainer:
     ) -> None:
         try:
             parsed = as_robot(robot)
-            env = JaxMazeEnv(parsed)
+            env = JaxMazeEnv(parsed) if parsed.discrete_outputs else JaxContinuousEnv(parsed)
         except AmazeError as error:
             raise RLConfigError(f"robot {robot!r}: {error}") from None
+        if not parsed.discrete_outputs and max_codes is not None:
+            raise RLConfigError(
+                f"max_codes {max_codes!r} has no effect with robot {parsed}: a continuous"
+                " robot's mazes are padded to a square side (max_cells gives its area)"
+            )
         hp = checked_hyperparameters(
             algo, hyperparameters or {}, robot_images=not parsed.discrete_inputs, n_envs=n_envs
         )
@@ -350,11 +360,25 @@ class JaxTrainer:
 
     # -- set-up -----------------------------------------------------------------------
 
-    def _compile(self, mazes: MazesLike | str) -> MazeParams:
+    def _compile(self, mazes: MazesLike | str) -> EnvParams:
         """The stacked params of ``mazes`` (one per maze); records them as strings."""
         strings = _maze_strings(mazes)
+        robot = self.static.env.robot
         try:
-            _, params = make_batch(strings, self.static.env.robot, **self._padding)
+            if robot.discrete_outputs:
+                _, params = make_batch(strings, robot, **self._padding)
+            else:
+                max_cells = self._padding["max_cells"]
+                if max_cells is not None:
+                    max_cells = check_integer(
+                        "max_cells", max_cells, minimum=1, error=RLConfigError
+                    )
+                params = compile_continuous_params(
+                    strings,
+                    robot,
+                    deadline_factor=self._padding["deadline_factor"],
+                    max_side=None if max_cells is None else math.isqrt(max_cells),
+                )
         except AmazeError as error:
             raise RLConfigError(f"mazes: {error}") from None
         self.mazes = strings
@@ -486,18 +510,22 @@ class JaxTrainer:
         return as_numpy(self.state.params)
 
     def policy(self) -> NumpyPolicy:
-        """The policy acting deterministically (argmax), in numpy, for the evaluation protocol."""
+        """The policy acting deterministically (argmax, or the Gaussian's mean), in numpy,
+        for the evaluation protocol."""
         return NumpyPolicy(self.static.spec, self.params())
 
     def jax_policy(self) -> Callable[[jax.Array], jax.Array]:
         """The current policy as a jitted JAX function: observations ``(n, ...)`` to
-        deterministic actions (int32 ``(n,)``), for evaluation inside JAX."""
+        deterministic actions (int32 ``(n,)``; a continuous robot's mean accelerations,
+        float32 ``(n, 2)``), for evaluation inside JAX."""
         spec, params = self.static.spec, self.state.params
 
         @jax.jit
         def act(observations: jax.Array) -> jax.Array:
-            logits, _ = apply(spec, params, observations)
-            return deterministic_actions(logits).astype(jnp.int32)
+            outputs, _ = apply(spec, params, observations)
+            if spec.continuous:  # the Gaussian's mean, in [-1, 1]
+                return outputs
+            return deterministic_actions(outputs).astype(jnp.int32)
 
         return act
 

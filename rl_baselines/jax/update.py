@@ -38,7 +38,13 @@ import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
 from rl_baselines.jax.hyperparameters import Hyperparameters
-from rl_baselines.jax.networks import Params, PolicySpec, apply, entropy, log_probabilities
+from rl_baselines.jax.networks import (
+    Params,
+    PolicySpec,
+    action_entropy,
+    action_log_prob,
+    apply,
+)
 from rl_baselines.jax.optim import OptState, optimizer_step
 
 __all__ = [
@@ -163,10 +169,9 @@ def _evaluate_actions(
     spec: PolicySpec, params: Params, batch: Batch
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
     """SB3's ``ActorCriticPolicy.evaluate_actions``: values, log-probabilities, entropies."""
-    logits, values = apply(spec, params, batch.observations)
-    log_probs = log_probabilities(logits)
-    log_prob = jnp.take_along_axis(log_probs, batch.actions[:, None].astype(jnp.int32), axis=1)
-    return values, log_prob[:, 0], entropy(log_probs)
+    outputs, values = apply(spec, params, batch.observations)
+    log_prob = action_log_prob(spec, params, outputs, batch.actions)
+    return values, log_prob, action_entropy(spec, params, outputs)
 
 
 def ppo_loss(

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import torch
@@ -26,6 +27,13 @@ from rl_baselines.jax.spec import PolicySpec
 from rl_baselines.jax.update import Batch, flatten_rollout
 from rl_baselines.learner import new_sb3_model
 from rl_baselines.vec_env import SB3VecEnv
+
+#: float32 agreement of parameters and optimizer moments after an update (several steps):
+#: relative, and absolute as a fraction of each array's largest magnitude.
+PARAMS_RTOL, PARAMS_ATOL = 2e-5, 5e-5
+#: float32 agreement of one gradient (same) and of the logged losses (relative).
+GRAD_RTOL, GRAD_ATOL = 1e-4, 1e-5
+
 
 MAZES = ["M1_5x5_C1", "M2_6x6_C1_l.25_L.25", "M3_7x5_C1_t.5_T.5"]
 
@@ -94,3 +102,20 @@ def sb3_permutations(model: BaseAlgorithm, epochs: int, seed: int) -> np.ndarray
     )
     np.random.seed(seed)  # noqa: NPY002 (SB3 draws from the legacy global generator)
     return permutations.astype(np.int32)
+
+
+def assert_trees_close(actual: Any, expected: Any, rtol: float, atol: float) -> None:
+    """Leaf by leaf: within ``rtol`` of each value or ``atol`` x the leaf's largest magnitude.
+
+    The absolute part scales with the array, as float32 rounding does: a moment that
+    cancels to nearly zero carries the rounding of its larger terms.
+    """
+    for path, value in jax.tree_util.tree_flatten_with_path(expected)[0]:
+        got = actual
+        for key in path:
+            got = got[key.key] if hasattr(key, "key") else getattr(got, key.name)
+        value = np.asarray(value)
+        scale = float(np.max(np.abs(value))) if value.size else 0.0
+        np.testing.assert_allclose(
+            np.asarray(got), value, rtol=rtol, atol=atol * scale, err_msg=str(path)
+        )

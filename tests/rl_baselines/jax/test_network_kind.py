@@ -18,7 +18,7 @@ from evolution.networks import NetworkSpec  # noqa: E402
 from rl_baselines import RLConfigError  # noqa: E402
 from rl_baselines.jax.networks import apply, init_params  # noqa: E402
 from rl_baselines.jax.policy import NumpyPolicy  # noqa: E402
-from rl_baselines.jax.spec import network_spec  # noqa: E402
+from rl_baselines.jax.spec import PolicySpec, accelerations, network_spec  # noqa: E402
 
 NETWORKS = [
     ("DD", {"hidden": [16], "symmetry": "rotations"}),
@@ -30,6 +30,9 @@ NETWORKS = [
     ("H15", {"hidden": [16], "filters": 4, "symmetry": "rotations"}),
     ("H11", {"hidden": [8], "filters": 3, "activation": "relu"}),
     ("H7", {"hidden": [], "filters": 2, "stride": 1, "symmetry": "rotations"}),
+    ("CC15", {"hidden": [16], "symmetry": "rotations"}),
+    ("CC7", {"hidden": [8], "pool": 3}),
+    ("CC11", {"hidden": [8], "filters": 3, "symmetry": "rotations"}),
 ]
 
 
@@ -37,7 +40,7 @@ def _observations(robot: str, n: int = 64) -> np.ndarray:
     rng = np.random.default_rng(3)
     if robot == "DD":
         return rng.choice([0.0, 0.25, 0.5, 1.0], size=(n, 8)).astype(np.float32)
-    v = int(robot[1:])
+    v = int(robot.lstrip("CDH"))
     return rng.integers(0, 256, size=(n, 1, v, v)).astype(np.uint8)
 
 
@@ -68,6 +71,28 @@ def test_turning_the_inputs_turns_the_logits_and_keeps_the_value(robot: str, fil
     assert not np.allclose(logits, np.roll(logits, -1, axis=1))  # the turn is not trivial
 
 
+@pytest.mark.parametrize("filters", [0, 3])
+def test_turning_the_image_turns_a_continuous_robots_acceleration(filters: int) -> None:
+    """The image turned a quarter-turn clockwise turns the mean acceleration ``(x, y)``
+    to ``(y, -x)`` (north becomes east), and keeps the value."""
+    network = {"hidden": [16], "symmetry": "rotations", **({"filters": filters} if filters else {})}
+    spec = network_spec("CC11", network)
+    params = _params(spec)
+    obs = _observations("CC11")
+    turned = np.rot90(obs, -1, axes=(2, 3)).copy()
+    mean, values = (np.asarray(a) for a in apply(spec, params, obs))
+    turned_mean, turned_values = (np.asarray(a) for a in apply(spec, params, turned))
+    assert mean.shape == (len(obs), 2) and np.all(np.abs(mean) <= 1)
+    np.testing.assert_allclose(turned_mean, np.stack([mean[:, 1], -mean[:, 0]], 1), atol=1e-5)
+    np.testing.assert_allclose(turned_values, values, rtol=1e-5, atol=1e-5)
+    assert np.abs(mean).max() > 0.1  # not a trivially zero acceleration
+
+
+def test_a_continuous_robot_needs_a_network() -> None:
+    with pytest.raises(RLConfigError, match="robot CC15 has continuous actions"):
+        PolicySpec("CC15")
+
+
 def test_without_symmetry_turning_the_inputs_changes_the_logits_otherwise() -> None:
     spec = network_spec("DD", {"hidden": [16]})
     params = _params(spec)
@@ -85,7 +110,8 @@ def test_jax_numpy_and_an_evolved_network_agree(robot: str, network: dict) -> No
     logits, values = (np.asarray(a) for a in apply(spec, params, obs))
     policy = NumpyPolicy(spec, params)
     numpy_logits, numpy_values = policy.logits_and_values(obs)
-    np.testing.assert_allclose(numpy_logits, logits, rtol=1e-5, atol=1e-5)
+    numpy_outputs = accelerations(spec, numpy_logits, np) if spec.continuous else numpy_logits
+    np.testing.assert_allclose(numpy_outputs, logits, rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(numpy_values, values, rtol=1e-5, atol=1e-5)
     evolved = NetworkSpec.from_dict(spec.architecture())
     vector = spec.actor_vector(params)
@@ -93,7 +119,11 @@ def test_jax_numpy_and_an_evolved_network_agree(robot: str, network: dict) -> No
     population = evolved.population(vector[None])
     population.reset(len(obs))
     actions = population(obs)
-    np.testing.assert_array_equal(actions, policy(obs))
+    if spec.continuous:  # the mean accelerations; evolution's tanh is within 4e-7 of numpy's
+        np.testing.assert_allclose(actions, policy(obs), rtol=0, atol=1e-5)
+        np.testing.assert_allclose(actions, logits, rtol=0, atol=1e-5)
+    else:
+        np.testing.assert_array_equal(actions, policy(obs))
     # the vector read back is the same actor
     actor = spec.actor_from_vector(vector)
     again = NumpyPolicy(spec, actor, actor_only=True)
@@ -118,7 +148,6 @@ def test_jax_numpy_and_an_evolved_network_agree(robot: str, network: dict) -> No
         ("DD", {"symmetry": "mirror"}, "network symmetry 'mirror'"),
         ("DD", {"activation": "gelu"}, "network activation 'gelu'"),
         ("DD", {"hidden": [0]}, "network hidden"),
-        ("CC15", {"hidden": [16]}, "discrete actions only"),
         ("DD", [16], "is not a mapping"),
     ],
 )

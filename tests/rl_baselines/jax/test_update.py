@@ -21,17 +21,16 @@ from rl_baselines.jax.optim import init_optimizer
 from rl_baselines.jax.sb3_io import opt_state_from_sb3, params_from_sb3
 from rl_baselines.jax.update import a2c_loss, a2c_update, ppo_loss, ppo_update
 from tests.rl_baselines.jax.sb3_reference import (
+    GRAD_ATOL,
+    GRAD_RTOL,
+    PARAMS_ATOL,
+    PARAMS_RTOL,
+    assert_trees_close,
     filled_model,
     jax_batch,
     sb3_permutations,
     spec_and_hp,
 )
-
-#: float32 agreement of parameters and optimizer moments after an update (several steps):
-#: relative, and absolute as a fraction of each array's largest magnitude.
-PARAMS_RTOL, PARAMS_ATOL = 2e-5, 5e-5
-#: float32 agreement of one gradient (same) and of the logged losses (relative).
-GRAD_RTOL, GRAD_ATOL = 1e-4, 1e-5
 
 
 def _jax_update(model: Any, algo: str, robot: str, hps: dict[str, Any], seed: int) -> tuple:
@@ -45,23 +44,6 @@ def _jax_update(model: Any, algo: str, robot: str, hps: dict[str, Any], seed: in
         return spec, ppo_update(spec, hp, params, opt_state, batch, permutations)
     sb3_permutations(model, 1, seed)
     return spec, a2c_update(spec, hp, params, opt_state, batch)
-
-
-def _assert_trees_close(actual: Any, expected: Any, rtol: float, atol: float) -> None:
-    """Leaf by leaf: within ``rtol`` of each value or ``atol`` x the leaf's largest magnitude.
-
-    The absolute part scales with the array, as float32 rounding does: a moment that
-    cancels to nearly zero carries the rounding of its larger terms.
-    """
-    for path, value in jax.tree_util.tree_flatten_with_path(expected)[0]:
-        got = actual
-        for key in path:
-            got = got[key.key] if hasattr(key, "key") else getattr(got, key.name)
-        value = np.asarray(value)
-        scale = float(np.max(np.abs(value))) if value.size else 0.0
-        np.testing.assert_allclose(
-            np.asarray(got), value, rtol=rtol, atol=atol * scale, err_msg=str(path)
-        )
 
 
 UPDATES = [
@@ -87,12 +69,12 @@ def test_update_equals_sb3_train(algo: str, robot: str, hps: dict[str, Any]) -> 
     model = filled_model(algo, robot, hps, seed=3)
     spec, (params, opt_state, stats) = _jax_update(model, algo, robot, hps, seed=11)
     model.train()
-    _assert_trees_close(params, params_from_sb3(model, spec), PARAMS_RTOL, PARAMS_ATOL)
+    assert_trees_close(params, params_from_sb3(model, spec), PARAMS_RTOL, PARAMS_ATOL)
     expected_state = opt_state_from_sb3(
         model, params, rms_prop=type(opt_state).__name__ != "AdamState"
     )
     assert int(opt_state.step) == int(expected_state.step) > 0
-    _assert_trees_close(opt_state, expected_state, PARAMS_RTOL, PARAMS_ATOL)
+    assert_trees_close(opt_state, expected_state, PARAMS_RTOL, PARAMS_ATOL)
     logged = model.logger.name_to_value
     prefix = "train/policy_gradient_loss" if algo == "ppo" else "train/policy_loss"
     for name, value in ((prefix, stats.policy_loss), ("train/value_loss", stats.value_loss),
@@ -123,7 +105,7 @@ def test_target_kl_stops_as_sb3() -> None:
     steps = int(stats.gradient_steps)
     assert steps == 9  # stopped early, in the last epoch
     assert int(opt_state.step) == steps
-    _assert_trees_close(params, params_from_sb3(model, spec), PARAMS_RTOL, PARAMS_ATOL)
+    assert_trees_close(params, params_from_sb3(model, spec), PARAMS_RTOL, PARAMS_ATOL)
     sb3_steps = int(model.policy.optimizer.state_dict()["state"][0]["step"])
     assert sb3_steps == steps
 
@@ -162,4 +144,4 @@ def test_gradients_equal_sb3(algo: str, robot: str, hps: dict[str, Any]) -> None
         grad_fn = jax.jit(jax.grad(a2c_loss, has_aux=True), static_argnums=(1, 2))
     grads, _ = grad_fn(params, spec, hp, batch)
     model.train()
-    _assert_trees_close(grads, _sb3_gradients(model, spec), GRAD_RTOL, GRAD_ATOL)
+    assert_trees_close(grads, _sb3_gradients(model, spec), GRAD_RTOL, GRAD_ATOL)

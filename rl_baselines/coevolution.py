@@ -40,8 +40,12 @@ SB3's TensorBoard logs and the figures ``framework``, ``scoring_steps`` and
 ``champion_validation_normalized_reward``. The budget counts training steps
 only (spent in whole rollouts: a round starts only if its rollout fits in
 what is left); the steps of the scoring and validation episodes are reported
-apart (``scoring_steps``, ``validation_steps``). A checkpoint is written
-every ``eval_every`` training steps.
+apart (``scoring_steps``, ``validation_steps``). Under a seconds budget a
+round is learnt a piece at a time (a rollout with SB3, one compiled call of
+rollouts with JAX) and stops once the seconds are spent: a slow network's
+round on large mazes lasts minutes, and played whole it would overrun the
+budget by as much. A checkpoint is written every ``eval_every`` training
+steps.
 
 **Run folder** (SB3): the loop's, and ``checkpoints/model-<round>.zip`` (the
 model; the state names it, the model is written first and the state last,
@@ -131,6 +135,14 @@ class EndedEpisodes:
     count: np.ndarray
     successes: np.ndarray
     normalized_reward: np.ndarray
+
+    def merged(self, other: EndedEpisodes) -> EndedEpisodes:
+        """The episodes of both (two pieces of one round)."""
+        return EndedEpisodes(
+            self.count + other.count,
+            self.successes + other.successes,
+            self.normalized_reward + other.normalized_reward,
+        )
 
     def scores(self, played: EpisodeResults) -> tuple[np.ndarray, np.ndarray]:
         """``(1, mazes)`` success shares and mean R̄: of the round's episodes where a
@@ -242,7 +254,7 @@ class RLCoevolutionRun(CoevolutionRun):
         rollouts = self.round_rollouts(self.set_round_mazes(mazes))
         if c.budget_steps is not None:  # whole rollouts, never past the budget
             rollouts = min(rollouts, (c.budget_steps - s.steps) // self.rollout)
-        ended = self.train_round(rollouts)
+        ended = self._train_within_seconds(rollouts)
         clock.lap("learning")
         agent = self.agent_now()
         played = _play(mazes, agent)
@@ -251,6 +263,34 @@ class RLCoevolutionRun(CoevolutionRun):
         success, reward = ended.scores(played)
         figures = {"batch_success_rate": float(played.success.mean())}
         return BatchResults(success, reward, [agent], figures)
+
+    def rollouts_per_piece(self) -> int:
+        """Rollouts learnt between two looks at the clock under a seconds budget."""
+        return 1
+
+    def _train_within_seconds(self, rollouts: int) -> EndedEpisodes:
+        """The round's ``rollouts``; under a seconds budget, in pieces of
+        :meth:`rollouts_per_piece`, stopping once the budget's seconds are spent.
+
+        A round lasts until its longest episode can end (:meth:`round_rollouts`):
+        on 20x20 mazes and a continuous robot's deadlines, a slow network's round
+        takes minutes, and a round played whole would run past the budget by
+        as much.
+        """
+        c = self.config
+        if c.budget_seconds is None:
+            return self.train_round(rollouts)
+        ended, done = None, 0
+        while done < rollouts:
+            count = min(self.rollouts_per_piece(), rollouts - done)
+            piece = self.train_round(count)
+            ended = piece if ended is None else ended.merged(piece)
+            done += count
+            self._tick()
+            if self.state.seconds >= c.budget_seconds:
+                break
+        assert ended is not None
+        return ended
 
     def validate(self, candidates: Sequence[Any]) -> Validation:
         """The agent on the validation mazes; its fitness is its mean R̄ there."""

@@ -135,6 +135,11 @@ class JaxCoevolutionRun(NetworkRunFiles, RLCoevolutionRun):
             stats.normalized_reward.sum(axis=0).astype(np.float64),
         )
 
+    def rollouts_per_piece(self) -> int:
+        """One compiled call of the trainer (:attr:`JaxTrainer.chunk` rollouts)."""
+        assert self.trainer is not None
+        return self.trainer.chunk
+
     def agent_now(self) -> JaxAgent:
         assert self.trainer is not None
         return JaxAgent(self.trainer)

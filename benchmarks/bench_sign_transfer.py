@@ -2,7 +2,7 @@
 
     python benchmarks/bench_sign_transfer.py AGENT.npz [AGENT.npz ...]
         [--shapes arrow star point ...] [--training-styles DIR] [--csv FILE]
-        [--episodes FILE]
+        [--episodes FILE] [--outline-parts]
 
 plays each agent of a hybrid robot (``H15``...), trained on mazes whose signs are
 arrows, on the standard suite (18 mazes x 4 rotations) with its signs redrawn
@@ -21,6 +21,12 @@ recognition with its four classes; then the shapes that cannot carry a direction
 ``--csv FILE`` also writes every agent's rows to one CSV file (a study's agents
 side by side); ``--episodes FILE`` every suite episode (agent, shape, maze
 played, its suite column, success, R̄): which mazes a shape is lost on.
+``--outline-parts`` also draws the held-out ``outline`` taken apart
+(:func:`~amaze.maze.arrow_styles.draw_outline`), never trained on either, and
+adds them to the shapes: ``outlinefilled`` (the same polygon filled),
+``outlinehead`` (its hollow head on a filled shaft), ``outlineshaft`` (its hollow
+shaft under a filled head) and ``outlinesmall`` (the outline at 0.7 of its
+size): which part of the drawing an agent cannot read.
 """
 
 from __future__ import annotations
@@ -38,6 +44,7 @@ from amaze.maze.arrow_styles import (
     HELD_OUT_FOLDER,
     HELD_OUT_STYLES,
     directional,
+    draw_outline,
     write_sign_styles,
 )
 from amaze.maze.signs import register_custom_signs
@@ -48,6 +55,13 @@ from evolution.agent_file import AgentFileError, load_agent
 SHAPES = ("arrow", "rarrow", "star", "point", "warning", *HELD_OUT_STYLES)
 #: How many shapes of a ``--training-styles`` folder join the default list.
 TRAINING_SHAPES_LISTED = 3
+#: ``--outline-parts``: the held-out outline taken apart, by shape name.
+OUTLINE_PARTS = {
+    "outlinefilled": {"hollow_head": False, "hollow_shaft": False},
+    "outlinehead": {"hollow_shaft": False},
+    "outlineshaft": {"hollow_head": False},
+    "outlinesmall": {"scale": 0.7},
+}
 
 
 def draw_held_out(folder: Path) -> list[str]:
@@ -55,6 +69,14 @@ def draw_held_out(folder: Path) -> list[str]:
     group; its one training style is not registered) and register them."""
     write_sign_styles(folder, 1, 0)
     return register_custom_signs(folder / HELD_OUT_FOLDER)
+
+
+def draw_outline_parts(folder: Path) -> list[str]:
+    """Write :data:`OUTLINE_PARTS` as PNG files in ``folder`` and register them."""
+    folder.mkdir()
+    for name, parts in OUTLINE_PARTS.items():
+        draw_outline(**parts).save(folder / f"{name}.png")
+    return register_custom_signs(folder)
 
 
 def reshaped(maze: str, shape: str) -> str:
@@ -78,6 +100,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--episodes", type=Path, metavar="FILE", help="also write every suite episode to FILE"
     )
+    parser.add_argument(
+        "--outline-parts",
+        action="store_true",
+        help="also play the outline taken apart: filled, hollow head only, hollow shaft only,"
+        " smaller",
+    )
     args = parser.parse_args(argv)
     agents = []
     for path in args.agents:
@@ -99,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as folder:
         draw_held_out(Path(folder))
         shapes = list(SHAPES) if args.shapes is None else args.shapes
+        if args.outline_parts:
+            shapes += [s for s in draw_outline_parts(Path(folder) / "parts") if s not in shapes]
         try:
             if args.training_styles is not None:
                 trained = register_custom_signs(args.training_styles)

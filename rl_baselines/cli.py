@@ -30,7 +30,11 @@ __all__ = ["COMMAND", "entry_point", "main"]
 
 COMMAND = TrainingCommand(
     prog="amaze-train",
-    description="Train SB3 A2C/PPO agents on AMaze mazes.",
+    description=(
+        "Train A2C/PPO agents on AMaze mazes: stable-baselines3's, or the compiled JAX"
+        " learners' (--framework jax). Continuous robots (CC7, CC15...) train with"
+        ' --framework jax and a network: --preset fast, or the config\'s "network".'
+    ),
     module="rl_baselines.cli",
     # imported once the options and the config are checked: torch and SB3 load then
     run_class="rl_baselines.train:SB3Run",

@@ -128,6 +128,12 @@ class TrainConfig(RegimeConfig):
         " of SB3's policy; the agent is saved as an evolved agent's file (agent.npz)",
         command_line=False,
     )
+    progress_reward: float = option(
+        0.0,
+        "framework jax, continuous robots: reward for reaching cells further along each"
+        " maze's solution, an episode gaining this times its path progress times the maze's"
+        " finish reward (0: AMaze's reward alone; evaluations score AMaze's)",
+    )
     agent_rule: str | None = option(
         None,
         "which agent the run hands over: final (the agent when training stops), best-eval"
@@ -327,6 +333,15 @@ class TrainConfig(RegimeConfig):
             raise RLConfigError(
                 f"framework {self.framework!r} is unknown (choose from {', '.join(FRAMEWORKS)})"
             )
+        self.progress_reward = check_number(
+            "progress_reward", self.progress_reward, minimum=0.0, error=RLConfigError
+        )
+        if self.progress_reward and self.framework != "jax":
+            raise RLConfigError(
+                f"progress_reward {self.progress_reward!r} has no effect with framework"
+                f" {self.framework}: the JAX environment of continuous robots pays it"
+                " (give framework jax)"
+            )
         if self.framework != "jax":
             if self.regime == "edens-populations":
                 raise RLConfigError(
@@ -341,6 +356,11 @@ class TrainConfig(RegimeConfig):
                 )
             return
         robot = as_robot(self.robot)
+        if self.progress_reward and robot.discrete_outputs:
+            raise RLConfigError(
+                f"progress_reward {self.progress_reward!r} has no effect with robot {self.robot}:"
+                " it rewards continuous robots (CC...) only"
+            )
         if not robot.discrete_outputs and self.network is None:
             raise RLConfigError(
                 f"robot {self.robot} has continuous actions: framework jax trains them with a"

@@ -284,6 +284,7 @@ class JaxCurriculumRun(NetworkRunFiles, SB3CurriculumRun):
             seed=seed,
             n_envs=c.n_envs,
             network=c.network,
+            progress_reward=c.progress_reward,
         )
         return JaxLearner(trainer, seed=seed, eval_every=c.eval_every)
 

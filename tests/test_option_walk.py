@@ -30,7 +30,7 @@ EVERYWHERE = {
     TrainConfig: {
         "robot", "seed", "regime", "algo", "budget_steps", "budget_seconds", "eval_every",
         "n_envs", "tensorboard", "hyperparameters", "evaluation_points", "evaluation_family",
-        "framework", "network", "preset",
+        "framework", "network", "preset", "progress_reward",
     },
 }  # fmt: skip
 #: A value other than the default for each regime-bound field (per regime where it matters).

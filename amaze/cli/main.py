@@ -679,7 +679,7 @@ def _add_draw_signs(commands: argparse._SubParsersAction) -> None:
         type=lambda text: tuple(text.split(",")),
         default=("filled", "open"),
         metavar="A,B",
-        help="heads the training styles may have: filled, open, hollow (filled,open)",
+        help="heads the training styles may have: filled, open, hollow, hairline (filled,open)",
     )
     draw.set_defaults(run=_cmd_draw_signs)
 

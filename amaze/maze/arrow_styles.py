@@ -79,11 +79,16 @@ RANGES: dict[str, tuple[float, float]] = {
 
 #: A head is at least this many times as wide as the shaft (so that it stands out).
 HEAD_TO_SHAFT = 2.0
-#: How a head is drawn: a filled triangle, an open V of two strokes, or the
-#: triangle's closed contour (hollow; the shaft stays filled).
-HEADS = ("filled", "open", "hollow")
+#: How a head is drawn: a filled triangle, an open V of two strokes, the
+#: triangle's closed contour (hollow; the shaft stays filled), or that contour
+#: drawn with a hairline (half the shaft's width, at least :data:`MIN_HAIRLINE`).
+HEADS = ("filled", "open", "hollow", "hairline")
 #: The heads :func:`training_styles` draws by default (the styles it has always drawn).
 DEFAULT_HEADS = ("filled", "open")
+#: Thinnest stroke of a ``hairline`` head, as a share of the image side. A ``hollow``
+#: head's stroke is the shaft's width, and at a hybrid robot's 13-pixel sign the
+#: triangle's hole closes: such a head looks filled. A hairline keeps the hole open.
+MIN_HAIRLINE = 0.04
 
 _SUPERSAMPLE = 4  # drawn at 4 x the side, then averaged: smooth edges, sub-pixel widths count
 
@@ -95,7 +100,8 @@ class ArrowStyle:
     The arrow is a shaft (``shaft_length`` long, ``shaft_width`` thick) ending in
     a head ``head_length`` long and ``head_width`` across, ``head`` one of
     :data:`HEADS` (a filled triangle, an open V of two strokes as thick as the shaft,
-    or the triangle's contour drawn with such a stroke), centred, then scaled by
+    the triangle's contour drawn with such a stroke, or with a hairline half as
+    thick, at least :data:`MIN_HAIRLINE`), centred, then scaled by
     ``scale`` about the centre. ``noise`` adds Gaussian noise of that standard
     deviation (a share of full white) to every pixel's gray level, drawn from
     ``noise_seed``: the same style always gives the same image. Every field must
@@ -147,7 +153,8 @@ def draw_arrow(style: ArrowStyle, size: int = IMAGE_SIZE) -> Image.Image:
     half_shaft, half_head = style.shaft_width / 2, style.head_width / 2
     # A stroked head's round apex reaches half a stroke past its vertex: centre the ink.
     filled = style.head == "filled"
-    reach = style.shaft_length + style.head_length + (0.0 if filled else half_shaft)
+    head_stroke = max(MIN_HAIRLINE, half_shaft) if style.head == "hairline" else style.shaft_width
+    reach = style.shaft_length + style.head_length + (0.0 if filled else head_stroke / 2)
     start = 0.5 - reach / 2
     base = start + style.shaft_length
     tip = base + style.head_length
@@ -158,7 +165,7 @@ def draw_arrow(style: ArrowStyle, size: int = IMAGE_SIZE) -> Image.Image:
             return at(0.5 + (x - 0.5) * s, 0.5 + (y - 0.5) * s)
 
         head = [(base, 0.5 - half_head), (tip, 0.5), (base, 0.5 + half_head)]
-        stroke = _pixels(style.shaft_width * s, at)
+        stroke = _pixels(head_stroke * s, at)
         if filled:
             shaft_end = base + min(half_shaft, style.head_length / 2)  # overlap: no seam
             draw.polygon([scaled(x, y) for x, y in head], fill=255)
@@ -260,20 +267,43 @@ def draw_harpoon(size: int = IMAGE_SIZE) -> Image.Image:
     return _white(np.asarray(_supersampled(size, paint)))
 
 
-def draw_outline(size: int = IMAGE_SIZE) -> Image.Image:
+def draw_outline(
+    size: int = IMAGE_SIZE,
+    *,
+    hollow_head: bool = True,
+    hollow_shaft: bool = True,
+    scale: float = 1.0,
+) -> Image.Image:
     """The hollow contour of a block arrow (shaft and head), pointing east (``LA``).
 
     One closed stroke around the outline of the built-in arrow's kind of
-    polygon; the inside stays transparent.
+    polygon; the inside stays transparent. The keywords draw its parts apart,
+    to find what makes it hard to read (``benchmarks/bench_sign_transfer.py
+    --outline-parts``): ``hollow_head=False`` fills the head, ``hollow_shaft=False``
+    the shaft (each hollow part then keeps its own contour), ``scale`` (0.25 to 1)
+    shrinks the drawing about the centre. The defaults are the held-out ``outline``.
     """
     size = _check_size(size)
+    scale = check_number("outline scale", scale, minimum=0.25, maximum=1.0, error=SignError)
     contour = [(0.08, 0.38), (0.55, 0.38), (0.55, 0.14), (0.92, 0.5),
                (0.55, 0.86), (0.55, 0.62), (0.08, 0.62)]  # fmt: skip
+    head = [(0.55, 0.14), (0.92, 0.5), (0.55, 0.86)]
+    shaft = [(0.55, 0.62), (0.08, 0.62), (0.08, 0.38), (0.55, 0.38)]
 
     def paint(draw: ImageDraw.ImageDraw, at: Callable[[float, float], tuple[float, float]]) -> None:
-        # Going round past the first corner again makes it a joint like the others.
-        points = [at(x, y) for x, y in [*contour, *contour[:2]]]
-        draw.line(points, fill=255, width=_pixels(0.07, at), joint="curve")
+        def scaled(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+            return [at(0.5 + (x - 0.5) * scale, 0.5 + (y - 0.5) * scale) for x, y in points]
+
+        width = _pixels(0.07 * scale, at)
+        if hollow_head and hollow_shaft:
+            # Going round past the first corner again makes it a joint like the others.
+            draw.line(scaled([*contour, *contour[:2]]), fill=255, width=width, joint="curve")
+            return
+        for part, hollow in ((head, hollow_head), (shaft, hollow_shaft)):
+            if hollow:
+                draw.line(scaled([*part, *part[:2]]), fill=255, width=width, joint="curve")
+            else:
+                draw.polygon(scaled(part), fill=255)
 
     return _white(np.asarray(_supersampled(size, paint)))
 

@@ -100,6 +100,7 @@ class JaxCoevolutionRun(NetworkRunFiles, RLCoevolutionRun):
             n_envs=c.n_envs,
             max_cells=self.max_cells(),
             network=c.network,
+            progress_reward=c.progress_reward,
         )
         return _JaxState(mazes)
 
@@ -112,7 +113,13 @@ class JaxCoevolutionRun(NetworkRunFiles, RLCoevolutionRun):
         assert isinstance(state, _JaxState)
         trainer = load_trainer(named_checkpoint(self, state.trainer_folder))
         c = self.config
-        expected = {"algo": c.algo, "robot": c.robot, "n_envs": c.n_envs, "network": c.network}
+        expected = {
+            "algo": c.algo,
+            "robot": c.robot,
+            "n_envs": c.n_envs,
+            "network": c.network,
+            "progress_reward": c.progress_reward,
+        }
         trainer.check_settings(expected, f"checkpoint {str(self.checkpoint)!r}")
         self.trainer = trainer
         self.check_champion()

@@ -107,6 +107,7 @@ class JaxRun(NetworkRunFiles, DirectRun):
             seed=c.seed,
             n_envs=c.n_envs,
             network=c.network,
+            progress_reward=c.progress_reward,
         )
         check_rollout_fits(c, self.rollout, "learns in whole rollouts")
 
@@ -135,6 +136,7 @@ class JaxRun(NetworkRunFiles, DirectRun):
             "mazes": [maze.to_string() for maze in as_mazes(self._mazes())],
             "hyperparameters": hp.sb3_kwargs(policy=c.network is None),
             "network": c.network,
+            "progress_reward": c.progress_reward,
         }
         trainer.check_settings(expected, f"checkpoint {str(trainer_folder)!r}")
         if trainer.num_timesteps != steps:

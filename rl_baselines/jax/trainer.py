@@ -40,7 +40,7 @@ from amaze.envs.jax.continuous import compile_continuous_params
 from amaze.errors import AmazeError
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
-from amaze.validation import check_integer, check_rollout_size
+from amaze.validation import check_integer, check_number, check_rollout_size
 from rl_baselines import RLConfigError
 from rl_baselines.jax.hyperparameters import (
     MAX_CHUNK_STEPS,
@@ -298,7 +298,10 @@ class JaxTrainer:
     (:func:`~rl_baselines.jax.spec.network_spec`: evolution's ``hidden``,
     ``activation``, ``pool``, ``symmetry``) instead of SB3's policy (a
     continuous robot's policy needs one: a Gaussian over evolution's
-    accelerations). Bad values raise :class:`RLConfigError`.
+    accelerations). ``progress_reward`` (continuous robots only): the reward for
+    reaching further along each maze's solution
+    (:class:`~amaze.envs.jax.JaxContinuousEnv`; 0, AMaze's reward alone).
+    Bad values raise :class:`RLConfigError`.
     """
 
     def __init__(
@@ -315,12 +318,24 @@ class JaxTrainer:
         max_codes: int | None = None,
         chunk_steps: int = CHUNK_STEPS,
         network: Mapping[str, Any] | None = None,
+        progress_reward: float = 0.0,
     ) -> None:
         try:
             parsed = as_robot(robot)
-            env = JaxMazeEnv(parsed) if parsed.discrete_outputs else JaxContinuousEnv(parsed)
         except AmazeError as error:
             raise RLConfigError(f"robot {robot!r}: {error}") from None
+        progress_reward = check_number(
+            "progress_reward", progress_reward, minimum=0.0, error=RLConfigError
+        )
+        if parsed.discrete_outputs:
+            if progress_reward:
+                raise RLConfigError(
+                    f"progress_reward {progress_reward!r} has no effect with robot {parsed}:"
+                    " it rewards continuous robots (CC...) only"
+                )
+            env: JaxMazeEnv | JaxContinuousEnv = JaxMazeEnv(parsed)
+        else:
+            env = JaxContinuousEnv(parsed, progress_reward=progress_reward)
         if not parsed.discrete_outputs and max_codes is not None:
             raise RLConfigError(
                 f"max_codes {max_codes!r} has no effect with robot {parsed}: a continuous"
@@ -480,6 +495,7 @@ class JaxTrainer:
             **self._padding,
             "chunk_steps": self.chunk * hp.rollout_size,
             "network": self.network,
+            "progress_reward": getattr(self.static.env, "progress_reward", 0.0),
         }
 
     def check_settings(self, expected: Mapping[str, Any], source: str) -> None:

@@ -248,6 +248,13 @@ def test_a_killed_jax_coevolution_run_resumes_to_the_same_agent_bit_for_bit(
         ([], {"policy_kwargs": {"ortho_init": False}}, "'ortho_init' = False is not supported"),
         ([], {"n_step": 5}, "hyperparameter 'n_step' is not one of PPO's"),
         ([], {"gamma": 2.0}, "framework jax: hyperparameter 'gamma'"),
+        (["--progress-reward", "1"], {}, "progress_reward 1.0 has no effect with robot DD"),
+        (["--progress-reward", "-1"], {}, "progress_reward -1"),
+        (
+            ["--framework", "sb3", "--progress-reward", "1"],
+            {},
+            "progress_reward 1.0 has no effect with framework sb3",
+        ),
     ],
 )
 def test_what_the_jax_framework_does_not_do_is_refused_in_one_line(

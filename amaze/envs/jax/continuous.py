@@ -38,6 +38,20 @@ canvas (:func:`amaze.agents.tables.maze_canvas`: the maze drawn at ``v``
 pixels a cell with a ``v``-pixel ring, the window's source), padded to the
 largest maze of a batch (:func:`compile_continuous_params`); a jitted
 function called with params of the same padded size never recompiles.
+
+**Progress reward** (``progress_reward``, default 0: AMaze's reward
+alone). A continuous robot far from its goal seldom reaches it by chance, and
+standing still is a local optimum of AMaze's rewards. With
+``progress_reward = k``, each step that takes the robot into a cell of its
+maze's solution further along than any it stood in before adds ``k`` times the
+share of the solution gained times the maze's finish reward: an episode gains
+``k`` times its path progress (the furthest solution cell reached, as a share
+of the path: 1 on success; the quantity
+:func:`amaze.evaluation.policy.run_episodes` records and evolution can take as
+fitness) times the finish reward, so that a cell gained is worth more than the
+time spent driving through it (the finish reward is about ``2 (l - 1)``, a
+step costs 0.1) whatever the maze's size. Going back and forth gains nothing. The
+episode figures of ``info`` stay the paper's (``path_progress`` is added).
 """
 
 from __future__ import annotations
@@ -77,7 +91,7 @@ from amaze.envs.jax.params import tile_params
 from amaze.errors import OptionError
 from amaze.maze.maze import Maze, as_mazes
 from amaze.maze.spec import MazeSpec
-from amaze.validation import check_integer
+from amaze.validation import check_integer, check_number
 
 __all__ = [
     "ContinuousParams",
@@ -102,7 +116,9 @@ class ContinuousParams(NamedTuple):
     aligned; ``start``, ``goal``: int32 ``(2,)`` cells ``(i, j)``; ``deadline``:
     steps; ``finish``: the reward added on reaching the goal; ``path_length``
     (``l``); ``min_reward``: the reference's worst return (``pretty_reward``);
-    ``width``, ``height``.
+    ``width``, ``height``; ``path_position`` float ``(max_w * max_h,)``: cell
+    ``i * height + j``'s place on the solution, ``k / (l - 1)`` for its ``k``-th
+    cell, -1 off it (:func:`amaze.evaluation.policy.path_positions`).
     """
 
     walls: jax.Array
@@ -115,6 +131,7 @@ class ContinuousParams(NamedTuple):
     min_reward: jax.Array
     width: jax.Array
     height: jax.Array
+    path_position: jax.Array
 
 
 class ContinuousState(NamedTuple):
@@ -123,7 +140,8 @@ class ContinuousState(NamedTuple):
     ``x``, ``y``: position (cell ``(i, j)`` covers ``[i, i + 1) x [j, j + 1)``);
     ``vx``, ``vy``: velocity; ``ci``, ``cj``: the cell it is in; ``pi``,
     ``pj``: the cell it was in before (its start cell at first); ``time``,
-    ``collisions``, ``backsteps``: the episode's counters.
+    ``collisions``, ``backsteps``: the episode's counters; ``progress``: the
+    furthest solution cell it stood in, as a share of the path (0 at the start).
     """
 
     x: jax.Array
@@ -137,6 +155,7 @@ class ContinuousState(NamedTuple):
     time: jax.Array
     collisions: jax.Array
     backsteps: jax.Array
+    progress: jax.Array
 
 
 def continuous_robot(robot: Robot | str) -> Robot:
@@ -178,15 +197,22 @@ class JaxContinuousEnv(AutoResetSteps):
     ``info`` holds the ending step's ``final_observation``, ``terminated``,
     ``truncated`` and the figures of :meth:`episode_info`.
 
-    Equal robots and dtypes give equal (and equally hashed) environments, so
-    jitted functions taking the env as a static argument compile once.
+    ``progress_reward``: the reward for reaching further along the solution (see
+    the module; 0, the default, is AMaze's reward alone). Equal robots, dtypes
+    and progress rewards give equal (and equally hashed) environments, so jitted
+    functions taking the env as a static argument compile once.
     """
 
     robot: Robot
     dtype: Any
+    progress_reward: float
 
-    def __init__(self, robot: Robot | str = "CC15", dtype: Any = jnp.float32) -> None:
+    def __init__(
+        self, robot: Robot | str = "CC15", dtype: Any = jnp.float32, progress_reward: float = 0.0
+    ) -> None:
         object.__setattr__(self, "robot", continuous_robot(robot))
+        reward = check_number("progress_reward", progress_reward, minimum=0.0, error=OptionError)
+        object.__setattr__(self, "progress_reward", reward)
         kind = jnp.dtype(dtype)
         if kind not in (jnp.dtype(jnp.float32), jnp.dtype(jnp.float64)):
             raise OptionError(f"dtype {dtype!r}: give float32 or float64")
@@ -243,7 +269,7 @@ class JaxContinuousEnv(AutoResetSteps):
         zero = jnp.zeros_like(i)
         return ContinuousState(
             i.astype(self.dtype) + half, j.astype(self.dtype) + half, zero_f, zero_f,
-            i, j, i, j, zero, zero, zero,
+            i, j, i, j, zero, zero, zero, zero_f,
         )  # fmt: skip
 
     @partial(jax.jit, static_argnums=0)
@@ -351,11 +377,16 @@ class JaxContinuousEnv(AutoResetSteps):
         finish = success | (state.time >= params.deadline)
         reward = reward + jnp.where(finish, params.finish.astype(f), zero)
         reward = reward + jnp.where(backward, jnp.asarray(BACKWARD_PENALTY, f), zero)
+        position = params.path_position[ni * params.height + nj].astype(f)
+        progress = jnp.maximum(state.progress, position)
+        if self.progress_reward:
+            gain = params.finish.astype(f) * (progress - state.progress)
+            reward = reward + jnp.asarray(self.progress_reward, f) * gain
         time = state.time + 1
         new = ContinuousState(
             x, y, vx, vy, ni, nj, pi, pj, time,
             state.collisions + collided.astype(jnp.int32),
-            state.backsteps + backward.astype(jnp.int32),
+            state.backsteps + backward.astype(jnp.int32), progress,
         )  # fmt: skip
         return new, reward, success, time >= params.deadline
 
@@ -368,7 +399,9 @@ class JaxContinuousEnv(AutoResetSteps):
         success, R̄ the paper's ``2 s - dt t / (l - 1) - 0.01 c - 0.02 b``,
         ``pretty_reward`` the reference's rescale of the return to [-1, 1],
         rounded to 3 decimals; each computed once in ``dtype`` (the engine sums
-        the return step by step in float64, so they agree to rounding).
+        the return step by step in float64, so they agree to rounding). The return
+        is the paper's, without the progress reward; ``path_progress`` is the
+        furthest share of the solution reached (1 on success).
         """
         f = self.dtype
         steps, c, b = (v.astype(f) for v in (state.time, state.collisions, state.backsteps))
@@ -393,6 +426,7 @@ class JaxContinuousEnv(AutoResetSteps):
             "cumulative_reward": ret,
             "pretty_reward": pretty,
             "normalized_reward": normalized,
+            "path_progress": state.progress,
         }
 
 
@@ -434,6 +468,11 @@ def compile_continuous_params(
         canvas[: (h + 2) * v, : (w + 2) * v] = drawn.reshape((h + 2) * v, (w + 2) * v)
         length = int(tables.path_length[m])
         scheme = RewardScheme(length, CONTINUOUS_DT, deadline_factor)
+        position = np.full(side * side, -1.0, dtype=dtype)
+        solution = np.asarray(maze.solution, dtype=np.int64).reshape(-1, 2)
+        position[solution[:, 0] * h + solution[:, 1]] = np.arange(len(solution)) / max(
+            1, len(solution) - 1
+        )
         rows.append({
             "walls": walls, "canvas": canvas,
             "start": tables.start_ij[m].astype(np.int32), "goal": tables.end_ij[m].astype(np.int32),
@@ -441,7 +480,7 @@ def compile_continuous_params(
             "finish": np.asarray(tables.finish[m], dtype=dtype),
             "path_length": np.int32(length),
             "min_reward": np.asarray(scheme.minimal_reward, dtype=dtype),
-            "width": np.int32(w), "height": np.int32(h),
+            "width": np.int32(w), "height": np.int32(h), "path_position": position,
         })  # fmt: skip
     return ContinuousParams(
         **{
@@ -459,13 +498,15 @@ def make_continuous(
     deadline_factor: float = DEFAULT_DEADLINE_FACTOR,
     max_side: int | None = None,
     dtype: Any = jnp.float32,
+    progress_reward: float = 0.0,
 ) -> tuple[JaxContinuousEnv, ContinuousParams]:
     """``(env, params)`` of ``num_envs`` environments (default: one per maze), for ``vmap``.
 
     Environment ``k`` plays maze ``k % len(mazes)``; the params have a leading
     axis. Index them (``jax.tree.map(lambda a: a[0], params)``) for one maze.
+    ``progress_reward``: see :class:`JaxContinuousEnv`.
     """
-    env = JaxContinuousEnv(robot, dtype)
+    env = JaxContinuousEnv(robot, dtype, progress_reward)
     params = compile_continuous_params(
         mazes, env.robot, deadline_factor=deadline_factor, max_side=max_side, dtype=env.dtype
     )

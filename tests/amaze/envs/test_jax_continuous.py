@@ -34,6 +34,7 @@ from amaze.envs.jax.continuous import (
 )
 from amaze.errors import OptionError
 from amaze.evaluation.controllers import OracleController
+from amaze.maze.maze import as_mazes
 
 MAZES = [
     "M1_4x4_U",
@@ -186,3 +187,46 @@ def test_params_pad_mazes_and_refuse_what_does_not_fit() -> None:
         )
         with pytest.raises(OptionError, match="not made for robot CC7"):
             env.reset(jax.random.key(0), one)
+
+
+def test_progress_reward_pays_each_new_share_of_the_solution_once() -> None:
+    """With ``progress_reward = k`` the robots move as without it; each episode gains
+    ``k`` times its path progress (1 on success) times its maze's finish reward, never
+    for going back and forth."""
+    ran = engine_run(seed=2)
+    actions = jnp.asarray(ran["actions"], jnp.float32)
+    paper, params = make_continuous(MAZES, ROBOT, num_envs=N_AGENTS, deadline_factor=1.5)
+    k = 0.5
+    shaped = JaxContinuousEnv(ROBOT, progress_reward=k)
+    assert shaped != paper and hash(shaped) != hash(paper)
+    _, (_, state0, reward0, _, _, info0) = jax_run(paper, params, actions)
+    _, (_, state, reward, term, trunc, info) = jax_run(shaped, params, actions)
+    np.testing.assert_array_equal(np.asarray(state.x), np.asarray(state0.x))
+    np.testing.assert_array_equal(info["cumulative_reward"], info0["cumulative_reward"])
+    gained = np.asarray(reward, np.float64) - np.asarray(reward0, np.float64)
+    assert gained.min() > -1e-6
+    done = np.asarray(term | trunc)
+    ci, cj, progress = (np.asarray(a) for a in (state.ci, state.cj, info["path_progress"]))
+    mazes = as_mazes(MAZES)
+    partial_episodes = 0
+    for agent in range(N_AGENTS):
+        solution = [tuple(cell) for cell in mazes[agent % len(MAZES)].solution]
+        share = {cell: i / (len(solution) - 1) for i, cell in enumerate(solution)}
+        total, furthest = 0.0, 0.0
+        for t in range(STEPS):
+            total += gained[t, agent]
+            if not done[t, agent]:
+                furthest = max(furthest, share.get((int(ci[t, agent]), int(cj[t, agent])), 0.0))
+                continue
+            finish = float(params.finish[agent])
+            np.testing.assert_allclose(total, k * finish * progress[t, agent], rtol=1e-5)
+            if term[t, agent]:
+                assert progress[t, agent] == 1.0
+            else:  # the last step may have reached one more cell of the solution
+                step = 1 / (len(solution) - 1)
+                assert furthest - 1e-6 <= progress[t, agent] <= furthest + step + 1e-6
+                partial_episodes += 0 < progress[t, agent] < 1
+            total, furthest = 0.0, 0.0
+    assert np.asarray(term).sum() >= N_AGENTS // 2 and partial_episodes >= 4
+    with pytest.raises(OptionError, match="progress_reward -1"):
+        JaxContinuousEnv(ROBOT, progress_reward=-1)

@@ -19,6 +19,7 @@ from amaze.maze.arrow_styles import (
     ArrowStyle,
     directional,
     draw_arrow,
+    draw_outline,
     training_styles,
     write_sign_styles,
 )
@@ -118,6 +119,39 @@ def test_a_hollow_head_is_the_contour_of_the_filled_one():
     assert solid[inside].min() > 0.9 and ring[inside].max() < 0.1
     heights = (ring > 0.5).sum(axis=0)
     assert heights[32:].max() > 1.5 * heights[:32].max() > 0  # still an arrow pointing east
+
+
+def test_a_hairline_head_keeps_its_hole_in_a_hybrid_robots_sign():
+    # A thick shaft (0.16 of the side) strokes a hollow head so thick that its hole
+    # closes in a 13-pixel sign (an H15 cell's); a hairline (0.08) keeps it dark.
+    def drawn(head: str, size: int) -> np.ndarray:
+        style = ArrowStyle(shaft_width=0.16, head=head, head_width=0.6, head_length=0.3)
+        return gray(draw_arrow(style, size))
+
+    inside = (slice(5, 8), slice(8, 10))  # around the head's centroid (row 6, column 8.7)
+    assert drawn("hollow", 13)[inside].min() > 0.2
+    assert drawn("hairline", 13)[inside].min() < 0.05
+    hollow, hairline = drawn("hollow", 256), drawn("hairline", 256)
+    head = (slice(None), slice(150, 230))  # east of the shaft: the head's strokes only
+    assert 0 < (hairline[head] > 0.5).sum() < 0.7 * (hollow[head] > 0.5).sum()
+    heights = (hairline > 0.5).sum(axis=0)
+    assert heights[32:].max() > 1.5 * heights[:32].max() > 0  # still an arrow pointing east
+
+
+def test_the_outline_taken_apart_fills_the_parts_asked_for():
+    outline = gray(draw_outline(256))
+    assert np.array_equal(outline, gray(HELD_OUT_STYLES["outline"](256)))
+    shaft, head = (128, 77), (128, 170)  # (row, column): inside the shaft, inside the head
+    for hollow_head, hollow_shaft in ((False, False), (True, False), (False, True)):
+        part = gray(draw_outline(256, hollow_head=hollow_head, hollow_shaft=hollow_shaft))
+        assert (part[shaft] < 0.05) == hollow_shaft and (part[head] < 0.05) == hollow_head
+    assert outline[shaft] < 0.05 and outline[head] < 0.05
+    small = gray(draw_outline(256, scale=0.7))
+    columns = np.flatnonzero((small > 0.5).any(axis=0))
+    wide = np.flatnonzero((outline > 0.5).any(axis=0))
+    assert 0.65 < (columns[-1] - columns[0]) / (wide[-1] - wide[0]) < 0.75
+    with pytest.raises(SignError, match=r"outline scale 0\.1"):
+        draw_outline(64, scale=0.1)
 
 
 @pytest.mark.parametrize("name", sorted(HELD_OUT_STYLES))

@@ -125,14 +125,14 @@ def path_positions(engine: BatchEngine) -> np.ndarray:
 
     float64 over the global cells of :attr:`BatchEngine.tables` (maze ``m``'s cell
     ``(i, j)`` at ``cell_offset[m] + i * height[m] + j``): the solution's ``k``-th
-    cell holds ``k / (l - 1)``, so the start holds 0 and the goal 1.
+    cell holds ``k / (l - 1)``, so the start holds 0 and the goal 1
+    (:meth:`~amaze.maze.maze.Maze.path_positions`, maze by maze).
     """
     tables = engine.tables
     positions = np.full(tables.n_cells, -1.0)
     for m, maze in enumerate(engine.mazes):
-        solution = np.asarray(maze.solution, dtype=np.int64).reshape(-1, 2)
-        cells = tables.cell_offset[m] + solution[:, 0] * tables.height[m] + solution[:, 1]
-        positions[cells] = np.arange(len(solution)) / max(1, len(solution) - 1)
+        offset = int(tables.cell_offset[m])
+        positions[offset : offset + maze.width * maze.height] = maze.path_positions()
     return positions
 
 

@@ -138,6 +138,18 @@ class Maze:
         """Number of cells of the solution, start and end included (the paper's ``l``)."""
         return len(self.solution)
 
+    def path_positions(self) -> np.ndarray:
+        """float64 ``(width * height,)``: each cell's place on the solution, -1 off it.
+
+        Cell ``(i, j)`` at ``i * height + j``; the solution's ``k``-th cell holds
+        ``k / (l - 1)``: the start 0, the goal 1. What path progress is read from.
+        """
+        positions = np.full(self.width * self.height, -1.0)
+        solution = np.asarray(self.solution, dtype=np.int64).reshape(-1, 2)
+        cells = solution[:, 0] * self.height + solution[:, 1]
+        positions[cells] = np.arange(len(solution)) / max(1, len(solution) - 1)
+        return positions
+
     @property
     def n_intersections(self) -> int:
         return len(self.intersections)

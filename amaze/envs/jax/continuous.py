@@ -118,7 +118,7 @@ class ContinuousParams(NamedTuple):
     (``l``); ``min_reward``: the reference's worst return (``pretty_reward``);
     ``width``, ``height``; ``path_position`` float ``(max_w * max_h,)``: cell
     ``i * height + j``'s place on the solution, ``k / (l - 1)`` for its ``k``-th
-    cell, -1 off it (:func:`amaze.evaluation.policy.path_positions`).
+    cell, -1 off it (:meth:`amaze.maze.maze.Maze.path_positions`).
     """
 
     walls: jax.Array
@@ -469,10 +469,7 @@ def compile_continuous_params(
         length = int(tables.path_length[m])
         scheme = RewardScheme(length, CONTINUOUS_DT, deadline_factor)
         position = np.full(side * side, -1.0, dtype=dtype)
-        solution = np.asarray(maze.solution, dtype=np.int64).reshape(-1, 2)
-        position[solution[:, 0] * h + solution[:, 1]] = np.arange(len(solution)) / max(
-            1, len(solution) - 1
-        )
+        position[: w * h] = maze.path_positions()
         rows.append({
             "walls": walls, "canvas": canvas,
             "start": tables.start_ij[m].astype(np.int32), "goal": tables.end_ij[m].astype(np.int32),

@@ -34,10 +34,10 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -n 2 --dist loadgroup -m "not slow"
+	$(BIN)/python -m pytest -n 2 --dist loadgroup --durations=15 -m "not slow"
 
 test-all: test
-	$(BIN)/python -m pytest -n 2 --dist loadgroup -m slow
+	$(BIN)/python -m pytest -n 2 --dist loadgroup --durations=15 -m slow
 
 # NO_MKDOCS_2_WARNING: the theme's notice about MkDocs' future, printed on every build.
 docs: $(DOCS_STAMP)

@@ -2,7 +2,7 @@
 
     python benchmarks/bench_sign_transfer.py AGENT.npz [AGENT.npz ...]
         [--shapes arrow star point ...] [--training-styles DIR] [--csv FILE]
-        [--episodes FILE] [--outline-parts]
+        [--episodes FILE] [--outline-parts] [--bold]
 
 plays each agent of a hybrid robot (``H15``...), trained on mazes whose signs are
 arrows, on the standard suite (18 mazes x 4 rotations) with its signs redrawn
@@ -26,7 +26,11 @@ played, its suite column, success, R̄): which mazes a shape is lost on.
 adds them to the shapes: ``outlinefilled`` (the same polygon filled),
 ``outlinehead`` (its hollow head on a filled shaft), ``outlineshaft`` (its hollow
 shaft under a filled head) and ``outlinesmall`` (the outline at 0.7 of its
-size): which part of the drawing an agent cannot read.
+size): which part of the drawing an agent cannot read. ``--bold`` adds
+``harpoonbold`` and ``outlinebold``, the two drawn with strokes twice as wide
+(``stroke``), never trained on: whether strokes narrower than a pixel of the
+robot's sign, whose pixels are then dimmer than the drawing's lightness, are
+what an agent misreads.
 """
 
 from __future__ import annotations
@@ -34,7 +38,11 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
+
+from PIL import Image
 
 from amaze.errors import AmazeError
 from amaze.evaluation.inputs import enumerate_inputs, evaluate_inputs
@@ -44,6 +52,7 @@ from amaze.maze.arrow_styles import (
     HELD_OUT_FOLDER,
     HELD_OUT_STYLES,
     directional,
+    draw_harpoon,
     draw_outline,
     write_sign_styles,
 )
@@ -56,11 +65,16 @@ SHAPES = ("arrow", "rarrow", "star", "point", "warning", *HELD_OUT_STYLES)
 #: How many shapes of a ``--training-styles`` folder join the default list.
 TRAINING_SHAPES_LISTED = 3
 #: ``--outline-parts``: the held-out outline taken apart, by shape name.
-OUTLINE_PARTS = {
-    "outlinefilled": {"hollow_head": False, "hollow_shaft": False},
-    "outlinehead": {"hollow_shaft": False},
-    "outlineshaft": {"hollow_head": False},
-    "outlinesmall": {"scale": 0.7},
+OUTLINE_PARTS: dict[str, Callable[[], Image.Image]] = {
+    "outlinefilled": partial(draw_outline, hollow_head=False, hollow_shaft=False),
+    "outlinehead": partial(draw_outline, hollow_shaft=False),
+    "outlineshaft": partial(draw_outline, hollow_head=False),
+    "outlinesmall": partial(draw_outline, scale=0.7),
+}
+#: ``--bold``: the harpoon and the outline with strokes twice as wide, by shape name.
+BOLD: dict[str, Callable[[], Image.Image]] = {
+    "harpoonbold": partial(draw_harpoon, stroke=0.2),
+    "outlinebold": partial(draw_outline, stroke=0.14),
 }
 
 
@@ -71,11 +85,12 @@ def draw_held_out(folder: Path) -> list[str]:
     return register_custom_signs(folder / HELD_OUT_FOLDER)
 
 
-def draw_outline_parts(folder: Path) -> list[str]:
-    """Write :data:`OUTLINE_PARTS` as PNG files in ``folder`` and register them."""
+def draw_variants(folder: Path, drawings: dict[str, Callable[[], Image.Image]]) -> list[str]:
+    """Write ``drawings`` (:data:`OUTLINE_PARTS`, :data:`BOLD`) as PNG files in ``folder``
+    and register them."""
     folder.mkdir()
-    for name, parts in OUTLINE_PARTS.items():
-        draw_outline(**parts).save(folder / f"{name}.png")
+    for name, draw in drawings.items():
+        draw().save(folder / f"{name}.png")
     return register_custom_signs(folder)
 
 
@@ -106,6 +121,11 @@ def main(argv: list[str] | None = None) -> int:
         help="also play the outline taken apart: filled, hollow head only, hollow shaft only,"
         " smaller",
     )
+    parser.add_argument(
+        "--bold",
+        action="store_true",
+        help="also play the harpoon and the outline drawn with strokes twice as wide",
+    )
     args = parser.parse_args(argv)
     agents = []
     for path in args.agents:
@@ -127,8 +147,13 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as folder:
         draw_held_out(Path(folder))
         shapes = list(SHAPES) if args.shapes is None else args.shapes
-        if args.outline_parts:
-            shapes += [s for s in draw_outline_parts(Path(folder) / "parts") if s not in shapes]
+        for wanted, drawings, subfolder in (
+            (args.outline_parts, OUTLINE_PARTS, "parts"),
+            (args.bold, BOLD, "bold"),
+        ):
+            if wanted:
+                drawn = draw_variants(Path(folder) / subfolder, drawings)
+                shapes += [s for s in drawn if s not in shapes]
         try:
             if args.training_styles is not None:
                 trained = register_custom_signs(args.training_styles)

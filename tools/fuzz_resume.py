@@ -103,7 +103,7 @@ RUNS: dict[str, dict] = {
         **CURRICULUM,
         "algo": "a2c",
         "budget_steps": 400,
-        "eval_every": 20,
+        "eval_every": 100,
         "tensorboard": False,
     },
 }

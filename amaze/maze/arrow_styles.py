@@ -90,6 +90,9 @@ DEFAULT_HEADS = ("filled", "open")
 #: triangle's hole closes: such a head looks filled. A hairline keeps the hole open.
 MIN_HAIRLINE = 0.04
 
+#: Widest stroke of the held-out drawings' ``stroke`` keyword, as a share of the image side.
+MAX_STROKE = 0.25
+
 _SUPERSAMPLE = 4  # drawn at 4 x the side, then averaged: smooth edges, sub-pixel widths count
 
 
@@ -256,13 +259,18 @@ def draw_chevron(size: int = IMAGE_SIZE) -> Image.Image:
     return image
 
 
-def draw_harpoon(size: int = IMAGE_SIZE) -> Image.Image:
-    """A shaft with a single barb on its north side, pointing east (``LA``, white on clear)."""
+def draw_harpoon(size: int = IMAGE_SIZE, *, stroke: float = 0.1) -> Image.Image:
+    """A shaft with a single barb on its north side, pointing east (``LA``, white on clear).
+
+    ``stroke`` is the line's width as a share of the image side (the held-out
+    ``harpoon``'s by default; up to :data:`MAX_STROKE`).
+    """
     size = _check_size(size)
+    stroke = _check_stroke("harpoon stroke", stroke)
 
     def paint(draw: ImageDraw.ImageDraw, at: Callable[[float, float], tuple[float, float]]) -> None:
         points = [at(0.08, 0.55), at(0.9, 0.55), at(0.6, 0.22)]
-        draw.line(points, fill=255, width=_pixels(0.1, at), joint="curve")
+        draw.line(points, fill=255, width=_pixels(stroke, at), joint="curve")
 
     return _white(np.asarray(_supersampled(size, paint)))
 
@@ -273,6 +281,7 @@ def draw_outline(
     hollow_head: bool = True,
     hollow_shaft: bool = True,
     scale: float = 1.0,
+    stroke: float = 0.07,
 ) -> Image.Image:
     """The hollow contour of a block arrow (shaft and head), pointing east (``LA``).
 
@@ -281,10 +290,13 @@ def draw_outline(
     to find what makes it hard to read (``benchmarks/bench_sign_transfer.py
     --outline-parts``): ``hollow_head=False`` fills the head, ``hollow_shaft=False``
     the shaft (each hollow part then keeps its own contour), ``scale`` (0.25 to 1)
-    shrinks the drawing about the centre. The defaults are the held-out ``outline``.
+    shrinks the drawing about the centre, ``stroke`` is the contour's width (a
+    share of the image side before scaling, up to :data:`MAX_STROKE`). The
+    defaults are the held-out ``outline``.
     """
     size = _check_size(size)
     scale = check_number("outline scale", scale, minimum=0.25, maximum=1.0, error=SignError)
+    stroke = _check_stroke("outline stroke", stroke)
     contour = [(0.08, 0.38), (0.55, 0.38), (0.55, 0.14), (0.92, 0.5),
                (0.55, 0.86), (0.55, 0.62), (0.08, 0.62)]  # fmt: skip
     head = [(0.55, 0.14), (0.92, 0.5), (0.55, 0.86)]
@@ -294,7 +306,7 @@ def draw_outline(
         def scaled(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
             return [at(0.5 + (x - 0.5) * scale, 0.5 + (y - 0.5) * scale) for x, y in points]
 
-        width = _pixels(0.07 * scale, at)
+        width = _pixels(stroke * scale, at)
         if hollow_head and hollow_shaft:
             # Going round past the first corner again makes it a joint like the others.
             draw.line(scaled([*contour, *contour[:2]]), fill=255, width=width, joint="curve")
@@ -406,6 +418,13 @@ def _supersampled(
     mask = Image.new("L", (side, side), 0)
     paint(ImageDraw.Draw(mask), lambda x, y: (x * side, y * side))
     return mask.reduce(_SUPERSAMPLE)
+
+
+def _check_stroke(name: str, stroke: float) -> float:
+    """``stroke``, a share of the image side in (0, :data:`MAX_STROKE`], or a SignError."""
+    return check_number(
+        name, stroke, minimum=0.0, strict_minimum=True, maximum=MAX_STROKE, error=SignError
+    )
 
 
 def _pixels(share: float, at: Callable[[float, float], tuple[float, float]]) -> int:

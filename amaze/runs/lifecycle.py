@@ -281,6 +281,11 @@ class Run(ABC):
             if summary.get("agent_untrained"):
                 found += ": the untrained agent, no training improved on it"
             lines.append(f"agent: {summary.get('agent')} (rule {summary['agent_rule']}, {found})")
+        if summary.get("progress_reward"):
+            lines.append(
+                f"trained with AMaze's reward plus the progress reward"
+                f" (k = {summary['progress_reward']:g}); every evaluation scores AMaze's reward"
+            )
         spent = summary.get("budget_spent") or {}
         if summary.get("stopped_early"):
             shares = ", ".join(f"{share:.0%} of the {unit} budget" for unit, share in spent.items())

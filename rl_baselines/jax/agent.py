@@ -192,7 +192,15 @@ class NetworkRunFiles:
         return NetworkAgent.load(path)
 
     def network_figures(self) -> dict[str, Any]:
-        """``{"network": architecture}`` with a network spec (``summary.json``), else nothing."""
-        if self.config.network is None:
+        """``{"network": architecture}`` with a network spec (``summary.json``), else nothing.
+
+        A continuous robot (which trains only with a network) paid the progress
+        reward adds ``progress_reward``, so that the run says what it trained for.
+        """
+        c = self.config
+        if c.network is None:
             return {}
-        return {"network": network_spec(self.config.robot, self.config.network).architecture()}
+        figures: dict[str, Any] = {"network": network_spec(c.robot, c.network).architecture()}
+        if c.progress_reward:
+            figures["progress_reward"] = c.progress_reward
+        return figures

@@ -111,13 +111,18 @@ def test_the_curricula_and_coevolution_train_a_network_and_hand_it_over(
 def test_a_continuous_robot_trains_and_evolution_plays_its_agent(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """CC7 with a Gaussian policy, co-evolved: the run hands over an evolved agent's file
-    whose accelerations are the mean the run evaluated."""
+    """CC7 with a Gaussian policy, co-evolved, paid the progress reward: the run hands over
+    an evolved agent's file whose accelerations are the mean the run evaluated, and says
+    what it trained for."""
     out = tmp_path / "run"
     options = _config(tmp_path, "a2c", network={"hidden": [8], "symmetry": "rotations"})
-    assert main([*COEVOLUTION, "--robot", "CC7", *options, "--out", str(out)]) == 0
+    progress = ["--progress-reward", "0.5"]
+    assert main([*COEVOLUTION, "--robot", "CC7", *options, *progress, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "plus the progress reward (k = 0.5)" in printed
     summary = json.loads((out / "summary.json").read_text())
     assert summary["agent"] == "agent.npz" and summary["network"]["robot"] == "CC7"
+    assert summary["progress_reward"] == 0.5
     arrays, metadata = read_agent(out / "agent.npz")
     assert metadata["robot"] == "CC7"
     assert arrays["params"].shape == (25 * 8 + 8 + 8 + 1,)  # log_std is not the actor's

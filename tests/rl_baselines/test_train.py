@@ -135,7 +135,7 @@ def test_kill_and_resume_counts_the_budget_once(tmp_path: Path) -> None:
     out = tmp_path / "run"
     budget = 12_000
     command = [sys.executable, "-m", "rl_baselines.cli", "--algo", "a2c", "--seed", "0"]
-    args = ["--budget-steps", str(budget), "--eval-every", "500", "--out", str(out)]
+    args = ["--budget-steps", str(budget), "--eval-every", "3000", "--out", str(out)]
     process = subprocess.Popen([*command, *args], stderr=subprocess.PIPE)
     state = out / "checkpoints" / "latest" / "state.json"
     deadline = time.monotonic() + 60

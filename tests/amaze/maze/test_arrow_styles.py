@@ -19,6 +19,7 @@ from amaze.maze.arrow_styles import (
     ArrowStyle,
     directional,
     draw_arrow,
+    draw_harpoon,
     draw_outline,
     training_styles,
     write_sign_styles,
@@ -152,6 +153,38 @@ def test_the_outline_taken_apart_fills_the_parts_asked_for():
     assert 0.65 < (columns[-1] - columns[0]) / (wide[-1] - wide[0]) < 0.75
     with pytest.raises(SignError, match=r"outline scale 0\.1"):
         draw_outline(64, scale=0.1)
+
+
+def test_bolder_strokes_light_a_robots_sign_more(tmp_path):
+    """Strokes under a pixel of a 13-pixel sign are dim there: the harpoon's and the
+    outline's lit pixels are about half bright. Drawn twice as wide they are brighter."""
+    assert np.array_equal(gray(draw_harpoon(256, stroke=0.1)), gray(draw_harpoon(256)))
+    assert np.array_equal(gray(draw_outline(256, stroke=0.07)), gray(draw_outline(256)))
+    drawings = {
+        "harpoon": draw_harpoon(),
+        "harpoonbold": draw_harpoon(stroke=0.2),
+        "outline": draw_outline(),
+        "outlinebold": draw_outline(stroke=0.14),
+    }
+    for name, image in drawings.items():
+        image.save(tmp_path / f"{name}.png")
+    register_custom_signs(tmp_path)
+
+    def lit(shape: str) -> tuple[float, int]:
+        """Median of the 13-pixel clue's lit pixels, and how many 256-pixel ones are inked."""
+        maze = Maze.from_string(f"M4_10x10_C{shape}-1")
+        sign = next(maze.sign_at(c) for c in maze.solution if maze.sign_at(c) is not None)
+        frame = sign_frames(sign.sign, 13)[0]
+        return float(np.median(frame[frame > 0.05])), int((gray(drawings[shape]) > 0.5).sum())
+
+    for thin in ("harpoon", "outline"):
+        (dim, ink), (bright, bold_ink) = lit(thin), lit(f"{thin}bold")
+        assert dim < 0.6 < 0.7 < bright and bold_ink > 1.5 * ink
+    for bad in (0, -0.1, 0.3, float("nan")):
+        with pytest.raises(SignError, match="stroke"):
+            draw_harpoon(64, stroke=bad)
+        with pytest.raises(SignError, match="stroke"):
+            draw_outline(64, stroke=bad)
 
 
 @pytest.mark.parametrize("name", sorted(HELD_OUT_STYLES))

@@ -25,8 +25,10 @@ played, its suite column, success, R̄): which mazes a shape is lost on.
 (:func:`~amaze.maze.arrow_styles.draw_outline`), never trained on either, and
 adds them to the shapes: ``outlinefilled`` (the same polygon filled),
 ``outlinehead`` (its hollow head on a filled shaft), ``outlineshaft`` (its hollow
-shaft under a filled head) and ``outlinesmall`` (the outline at 0.7 of its
-size): which part of the drawing an agent cannot read. ``--bold`` adds
+shaft under a filled head), ``outlinesmall`` (the outline at 0.7 of its
+size) and ``outline95`` (at 0.95: its tail and tip all but off the sign's
+outermost pixels, which even blocks of a pooled retina mix with the cell's
+walls and arrival marker): which part of the drawing an agent cannot read. ``--bold`` adds
 ``harpoonbold`` and ``outlinebold``, the two drawn with strokes twice as wide
 (``stroke``), never trained on: whether strokes narrower than a pixel of the
 robot's sign, whose pixels are then dimmer than the drawing's lightness, are
@@ -70,6 +72,7 @@ OUTLINE_PARTS: dict[str, Callable[[], Image.Image]] = {
     "outlinehead": partial(draw_outline, hollow_shaft=False),
     "outlineshaft": partial(draw_outline, hollow_head=False),
     "outlinesmall": partial(draw_outline, scale=0.7),
+    "outline95": partial(draw_outline, scale=0.95),
 }
 #: ``--bold``: the harpoon and the outline with strokes twice as wide, by shape name.
 BOLD: dict[str, Callable[[], Image.Image]] = {

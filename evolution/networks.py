@@ -14,6 +14,9 @@ see a ``v x v`` uint8 image, which a fixed, non-evolved encoder pools to a
 not given a weight per pixel: each block's mean (``pooling = "mean"``, the
 default) or its brightest pixel (``"max"``). The block edges are
 ``floor(linspace(0, v, pool + 1) + 0.5)``; ``pool = v`` feeds the raw pixels.
+``"mean-ring"`` and ``"max-ring"`` keep the image's outermost pixels (a hybrid
+robot's walls and arrival marker) in the grid's outer blocks, apart from the
+sign inside (:func:`amaze.agents.network_inputs.pool_edges`).
 
 **Layers.** Dense layers ``n_inputs -> hidden... -> n_outputs``, the hidden
 activation (``tanh``, ``relu``, ``sigmoid``, ``identity``) on hidden layers
@@ -70,6 +73,8 @@ from amaze.agents.network_inputs import (
     SYMMETRIES,
     pool_blocks,
     pool_edges,
+    pooling_problem,
+    pools_maxima,
     rotation_index,
 )
 from amaze.agents.robot import Robot, RobotStringError, as_robot
@@ -132,9 +137,10 @@ class NetworkSpec:
 
     ``robot`` is stored as its canonical string (``DD``, ``CD15``, ``CC11``);
     ``pool`` is the side of the pooled image grid, ``None`` for discrete-input
-    robots (image robots default to :data:`DEFAULT_POOL`); ``pooling`` how a
-    block is reduced, one of :data:`POOLINGS` (``"max"`` only with a pooled
-    image); ``symmetry`` is
+    robots (image robots default to :data:`DEFAULT_POOL`); ``pooling`` how the
+    grid is laid out and a block reduced, one of :data:`POOLINGS` (any but
+    ``"mean"`` only with a pooled image; the ring poolings with a grid of at
+    least 3); ``symmetry`` is
     one of :data:`SYMMETRIES` (``"rotations"``: one network scores each
     direction). ``filters`` > 0 (image robots) reads the
     image through that many evolved 3x3 filters slid with ``stride`` instead
@@ -207,10 +213,9 @@ class NetworkSpec:
                 "pool", pool, minimum=1, maximum=int(robot.vision), error=EvolutionConfigError
             )
             object.__setattr__(self, "pool", pool)
-        if self.pooling not in POOLINGS:
-            raise EvolutionConfigError(
-                f"pooling {self.pooling!r} is not one of {', '.join(POOLINGS)}"
-            )
+        problem = pooling_problem(self.pooling, self.pool)
+        if problem:
+            raise EvolutionConfigError(problem)
         if self.pooling != POOLINGS[0] and self.pool is None:
             image = "convolves its image" if filters else f"robot {robot} has no image"
             raise EvolutionConfigError(
@@ -386,11 +391,11 @@ class NetworkSpec:
         if self.pool is None:
             return observations.reshape(n, -1).astype(np.float32)
         v = int(self.robot_info.vision)
-        if self.pooling == "max":
-            pixels = observations.reshape(n, v * v)[:, pool_blocks(v, self.pool)]
+        if pools_maxima(self.pooling):
+            pixels = observations.reshape(n, v * v)[:, pool_blocks(v, self.pool, self.pooling)]
             return pixels.max(axis=-1).astype(np.float32) * np.float32(1.0 / 255.0)
         images = observations.reshape(n, v, v).astype(np.float64)
-        edges = pool_edges(v, self.pool)
+        edges = pool_edges(v, self.pool, self.pooling)
         out = np.empty((n, self.pool, self.pool), dtype=np.float64)
         for r in range(self.pool):
             for c in range(self.pool):
@@ -815,9 +820,9 @@ class NetworkPopulation:
         self._mode = _MODE_DISCRETE if self.robot.discrete_outputs else _MODE_CONTINUOUS
         self._vision = None if spec.grid is None else int(self.robot.vision)
         if spec.pool is not None:
-            edges = pool_edges(self._vision, spec.pool)
+            edges = pool_edges(self._vision, spec.pool, spec.pooling)
             self._edges = edges
-            self._maximum = spec.pooling == "max"
+            self._maximum = pools_maxima(spec.pooling)
             counts = np.outer(np.diff(edges), np.diff(edges)).ravel()
             if self._maximum:
                 counts = np.ones_like(counts)  # the brightest pixel, not a sum

@@ -8,7 +8,13 @@ way, so that one network spec means one network in both trainers:
   ``pool x pool`` grid of blocks (edges ``floor(linspace(0, v, pool + 1) +
   0.5)``), pixels scaled to [0, 1]: each block's mean (``pooling = "mean"``)
   or its brightest pixel (``"max"``: a sign's lightness whatever the width of
-  its strokes); discrete-input robots read their 8 floats;
+  its strokes); ``"mean-ring"`` and ``"max-ring"`` keep the image's outermost
+  ring of pixels in blocks of their own (the grid's outer blocks, one pixel
+  deep) and pool the inside over the inner ``pool - 2`` blocks (edges ``[0,
+  *floor(linspace(1, v - 1, pool - 1) + 0.5), v]``): a hybrid robot's cell
+  image holds its walls and the arrival marker in that ring and its sign
+  inside, and plain blocks mix a sign's outermost pixels with them
+  (:func:`pooling_problem`); discrete-input robots read their 8 floats;
 * **convolution**: ``filters`` 3x3 filters slid over the image with a
   ``stride`` that tiles it (:func:`stride_problem`, :func:`default_stride`),
   ``grid x grid`` positions (:func:`grid_side`), pixels scaled to [0, 1];
@@ -33,6 +39,8 @@ __all__ = [
     "pool_blocks",
     "pool_edges",
     "pool_matrix",
+    "pooling_problem",
+    "pools_maxima",
     "rotation_index",
     "stride_problem",
 ]
@@ -43,8 +51,11 @@ ACTIVATIONS: tuple[str, ...] = ("tanh", "relu", "sigmoid", "identity")
 SYMMETRIES: tuple[str, ...] = ("none", "rotations")
 #: Default side of the pooled grid of image robots.
 DEFAULT_POOL = 5
-#: How a block of the pooled grid is reduced (the first is the default).
-POOLINGS: tuple[str, ...] = ("mean", "max")
+#: How the pooled grid is laid out and a block reduced (the first is the default):
+#: block means or maxima, over even blocks or with the image's outer ring apart.
+POOLINGS: tuple[str, ...] = ("mean", "max", "mean-ring", "max-ring")
+#: The poolings that keep the image's outermost ring of pixels in blocks of their own.
+RING_POOLINGS: tuple[str, ...] = ("mean-ring", "max-ring")
 #: Side of a convolution's filter.
 FILTER_SIDE = 3
 #: Most filters a network may have (a sanity bound).
@@ -87,18 +98,47 @@ def rotation_index(side: int | None) -> np.ndarray:
     return np.stack([np.rot90(grid, -d).ravel() for d in range(4)])
 
 
-def pool_edges(vision: int, pool: int) -> np.ndarray:
-    """Block edges of the pooled grid along one image axis (``pool + 1`` integers)."""
+def pools_maxima(pooling: str) -> bool:
+    """Whether ``pooling`` (one of :data:`POOLINGS`) reduces a block to its brightest pixel."""
+    return pooling in ("max", "max-ring")
+
+
+def pooling_problem(pooling: object, pool: int | None) -> str | None:
+    """Why ``pooling`` cannot pool a grid of side ``pool``, or None when it can.
+
+    ``pooling`` must be one of :data:`POOLINGS`; a ring pooling needs a grid of
+    at least 3 blocks a side (the ring's two and one inside).
+    """
+    if pooling not in POOLINGS:
+        return f"pooling {pooling!r} is not one of {', '.join(POOLINGS)}"
+    if pooling in RING_POOLINGS and pool is not None and pool < 3:
+        return (
+            f"pooling {pooling!r} with pool {pool}: the ring takes the grid's outer blocks,"
+            " so its side must be at least 3"
+        )
+    return None
+
+
+def pool_edges(vision: int, pool: int, pooling: str = POOLINGS[0]) -> np.ndarray:
+    """Block edges of the pooled grid along one image axis (``pool + 1`` integers).
+
+    Even blocks, or with a ring pooling the outermost pixel on each side alone
+    and the ``vision - 2`` inside over ``pool - 2`` blocks.
+    """
+    if pooling in RING_POOLINGS:
+        inside = np.floor(np.linspace(1.0, vision - 1.0, pool - 1) + 0.5).astype(np.int64)
+        return np.concatenate([[0], inside, [vision]]).astype(np.int64)
     return np.floor(np.linspace(0.0, vision, pool + 1) + 0.5).astype(np.int64)
 
 
-def pool_matrix(vision: int, pool: int) -> np.ndarray:
+def pool_matrix(vision: int, pool: int, pooling: str = POOLINGS[0]) -> np.ndarray:
     """float64 ``(vision * vision, pool * pool)``: pixels (row-major) to their block's mean / 255.
 
     ``images.reshape(n, -1) @ pool_matrix(v, p)`` is the pooled retina, cell
-    ``r * pool + c`` the mean of block ``(r, c)`` scaled to [0, 1].
+    ``r * pool + c`` the mean of block ``(r, c)`` scaled to [0, 1]; ``pooling``
+    lays out the blocks (:func:`pool_edges`).
     """
-    edges = pool_edges(vision, pool)
+    edges = pool_edges(vision, pool, pooling)
     matrix = np.zeros((vision, vision, pool, pool), dtype=np.float64)
     for r in range(pool):
         for c in range(pool):
@@ -108,15 +148,16 @@ def pool_matrix(vision: int, pool: int) -> np.ndarray:
     return matrix.reshape(vision * vision, pool * pool)
 
 
-def pool_blocks(vision: int, pool: int) -> np.ndarray:
+def pool_blocks(vision: int, pool: int, pooling: str = POOLINGS[0]) -> np.ndarray:
     """int64 ``(pool * pool, m)``: the pixels (row-major indices) of each block of the grid.
 
     Row ``r * pool + c`` lists block ``(r, c)``'s pixels, padded to the largest
     block's ``m`` by repeating its first pixel, so that
     ``images.reshape(n, -1)[:, pool_blocks(v, p)].max(axis=-1) / 255`` is the
-    max-pooled retina (a repeated pixel does not change a maximum).
+    max-pooled retina (a repeated pixel does not change a maximum); ``pooling``
+    lays out the blocks (:func:`pool_edges`).
     """
-    edges = pool_edges(vision, pool)
+    edges = pool_edges(vision, pool, pooling)
     grid = np.arange(vision * vision, dtype=np.int64).reshape(vision, vision)
     blocks = [
         grid[edges[r] : edges[r + 1], edges[c] : edges[c + 1]].ravel()

@@ -430,12 +430,14 @@ def _cmd_interpolate(args: argparse.Namespace) -> None:
 def _cmd_draw_signs(args: argparse.Namespace) -> None:
     from amaze.maze.arrow_styles import (
         DEFAULT_HEADS,
+        DEFAULT_SHAFT_WIDTH,
         HELD_OUT_FOLDER,
         TRAINING_FOLDER,
         write_sign_styles,
     )
 
-    groups = write_sign_styles(args.out, args.training, args.seed, args.heads)
+    shaft_width = args.shaft_width or DEFAULT_SHAFT_WIDTH
+    groups = write_sign_styles(args.out, args.training, args.seed, args.heads, shaft_width)
     training, held_out = groups[TRAINING_FOLDER], groups[HELD_OUT_FOLDER]
     folder = Path(args.out)
     print(f"{len(training)} training styles (seed {args.seed}) -> {folder / TRAINING_FOLDER}:")
@@ -450,6 +452,11 @@ def _cmd_draw_signs(args: argparse.Namespace) -> None:
                 "sign_styles": len(training),
                 "sign_styles_seed": args.seed,
                 **({} if args.heads == DEFAULT_HEADS else {"sign_styles_heads": list(args.heads)}),
+                **(
+                    {}
+                    if shaft_width == DEFAULT_SHAFT_WIDTH
+                    else {"sign_styles_shaft_width": list(shaft_width)}
+                ),
             }
         }
     )
@@ -480,6 +487,20 @@ def _deadline_factor(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     try:
         return check_deadline_factor(value)
+    except AmazeError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _shaft_width(text: str) -> tuple[float, float]:
+    """The value of ``draw-signs --shaft-width``: ``LOW,HIGH``, checked as the library checks it."""
+    from amaze.maze.arrow_styles import check_shaft_width
+
+    try:
+        numbers = [float(part) for part in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not LOW,HIGH (two numbers)") from None
+    try:
+        return check_shaft_width(numbers)
     except AmazeError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
 
@@ -680,6 +701,14 @@ def _add_draw_signs(commands: argparse._SubParsersAction) -> None:
         default=("filled", "open"),
         metavar="A,B",
         help="heads the training styles may have: filled, open, hollow, hairline (filled,open)",
+    )
+    draw.add_argument(
+        "--shaft-width",
+        type=_shaft_width,
+        default=None,
+        metavar="LOW,HIGH",
+        help="range of the training styles' shaft widths, shares of the image side within"
+        " 0.05,0.3 (0.05,0.16: thin shafts)",
     )
     draw.set_defaults(run=_cmd_draw_signs)
 

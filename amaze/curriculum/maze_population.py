@@ -86,9 +86,11 @@ from amaze.curriculum.replay import (
 from amaze.curriculum.validation import reserved_seeds, unseen_mazes
 from amaze.maze.arrow_styles import (
     DEFAULT_HEADS,
+    DEFAULT_SHAFT_WIDTH,
     MAX_TRAINING_STYLES,
     TRAINING_PREFIX,
     check_heads,
+    check_shaft_width,
 )
 from amaze.maze.maze import Maze, as_mazes, rotations
 from amaze.maze.signs import Sign, SignError
@@ -158,7 +160,10 @@ class MazePopulationConfig:
     that its config alone says what it trained on, and it resumes without
     setup (:attr:`drawn_shapes`); ``sign_styles_heads`` lists the heads they
     may have (:data:`amaze.maze.arrow_styles.HEADS`; by default filled and
-    open). The run's validation mazes take the shapes in turn
+    open) and ``sign_styles_shaft_width`` the ``[low, high]`` range their shafts'
+    widths are drawn from (by default
+    :data:`~amaze.maze.arrow_styles.DEFAULT_SHAFT_WIDTH`, thin shafts). The
+    run's validation mazes take the shapes in turn
     (:attr:`~amaze.runs.coevolution.CoevolutionRun.validation_mazes`); the
     unseen mazes keep the target's. Robots that read sign values, not
     images (DD), refuse both options.
@@ -181,6 +186,7 @@ class MazePopulationConfig:
     sign_styles: int = 0
     sign_styles_seed: int = 0
     sign_styles_heads: tuple[str, ...] = DEFAULT_HEADS
+    sign_styles_shaft_width: tuple[float, float] = DEFAULT_SHAFT_WIDTH
 
     def __post_init__(self) -> None:
         def integer(name: str, low: int, high: int) -> None:
@@ -224,15 +230,19 @@ class MazePopulationConfig:
                     f"shapes {clash!r} are among the {self.sign_styles} sign_styles the run"
                     " draws itself (list them once: leave them out of shapes)"
                 )
-        try:
-            heads = check_heads(self.sign_styles_heads)
-        except SignError as error:
-            raise CoevolutionError(f"sign_styles_heads: {error}") from None
-        object.__setattr__(self, "sign_styles_heads", heads)
-        if heads != DEFAULT_HEADS and not self.sign_styles:
-            raise CoevolutionError(
-                f"sign_styles_heads {list(heads)!r} needs sign_styles > 0: no style is drawn"
-            )
+        for name, check, default in (
+            ("sign_styles_heads", check_heads, DEFAULT_HEADS),
+            ("sign_styles_shaft_width", check_shaft_width, DEFAULT_SHAFT_WIDTH),
+        ):
+            try:
+                value = check(getattr(self, name))
+            except SignError as error:
+                raise CoevolutionError(f"{name}: {error}") from None
+            object.__setattr__(self, name, value)
+            if value != default and not self.sign_styles:
+                raise CoevolutionError(
+                    f"{name} {list(value)!r} needs sign_styles > 0: no style is drawn"
+                )
         if self.capacity < self.batch:
             raise CoevolutionError(
                 f"capacity {self.capacity} is smaller than batch {self.batch}: a full"
@@ -249,6 +259,7 @@ class MazePopulationConfig:
         if self.shapes is not None:
             data["shapes"] = list(self.shapes)
         data["sign_styles_heads"] = list(self.sign_styles_heads)
+        data["sign_styles_shaft_width"] = list(self.sign_styles_shaft_width)
         return data
 
     @property

@@ -66,16 +66,23 @@ DIRECTIONAL_SIZE = 32
 DIRECTIONAL_TOLERANCE = 0.05
 
 #: Range of each :class:`ArrowStyle` field, as shares of the image side (noise: of
-#: full white). ``training_styles`` draws uniformly inside them; a style outside is refused.
-#: ``scale * shaft_length >= 0.75 * 0.4 = MIN_SHAFT`` and the whole arrow fits the image.
+#: full white). ``training_styles`` draws uniformly inside them (the shaft's width inside
+#: the narrower range it is given, :data:`DEFAULT_SHAFT_WIDTH` by default); a style
+#: outside is refused. ``scale * shaft_length >= 0.75 * 0.4 = MIN_SHAFT``, the head is
+#: at least twice as wide as the shaft, and the whole arrow fits the image.
 RANGES: dict[str, tuple[float, float]] = {
     "shaft_length": (0.4, 0.55),
-    "shaft_width": (0.05, 0.16),
+    "shaft_width": (0.05, 0.3),
     "head_length": (0.15, 0.35),
     "head_width": (0.3, 0.7),
     "scale": (0.75, 1.0),
     "noise": (0.0, 0.1),
 }
+
+#: The shaft widths :func:`training_styles` draws from by default (the thin shafts it has
+#: always drawn: 1 to 2 pixels of a hybrid robot's 13-pixel sign). Any range inside
+#: ``RANGES["shaft_width"]`` can be asked for: wider shafts, up to 4 pixels thick there.
+DEFAULT_SHAFT_WIDTH: tuple[float, float] = (0.05, 0.16)
 
 #: A head is at least this many times as wide as the shaft (so that it stands out).
 HEAD_TO_SHAFT = 2.0
@@ -195,27 +202,33 @@ def draw_arrow(style: ArrowStyle, size: int = IMAGE_SIZE) -> Image.Image:
 
 
 def training_styles(
-    count: int, seed: int, heads: Sequence[str] = DEFAULT_HEADS
+    count: int,
+    seed: int,
+    heads: Sequence[str] = DEFAULT_HEADS,
+    shaft_width: Sequence[float] = DEFAULT_SHAFT_WIDTH,
 ) -> list[ArrowStyle]:
     """``count`` arrow styles (1 to :data:`MAX_TRAINING_STYLES`) drawn from :data:`RANGES`.
 
-    Each field uniform in its range (the head's width in the part of its range
-    that :data:`HEAD_TO_SHAFT` leaves), the head one of ``heads`` (of
-    :data:`HEADS`, each as likely), and each style's noise seed drawn too, all
-    from ``np.random.default_rng(seed)``: the same ``(count, seed, heads)`` give
-    the same styles, and a longer list starts with a shorter one's styles. Only
-    the heads depend on ``heads``: the same seed draws the same shafts, sizes and
-    noise whichever heads are allowed.
+    Each field uniform in its range (the shaft's width in ``shaft_width``, a
+    ``(low, high)`` range inside its :data:`RANGES` one; the head's width in the
+    part of its range that :data:`HEAD_TO_SHAFT` leaves), the head one of
+    ``heads`` (of :data:`HEADS`, each as likely), and each style's noise seed
+    drawn too, all from ``np.random.default_rng(seed)``: the same arguments give
+    the same styles, and a longer list starts with a shorter one's styles. The
+    same seed draws the same shaft lengths, head lengths, scales and noise
+    whichever heads and shaft widths are asked for: ``heads`` changes only the
+    heads, ``shaft_width`` only the shafts' widths and the heads' widths they allow.
     """
     count = check_integer(
         "training style count", count, minimum=1, maximum=MAX_TRAINING_STYLES, error=SignError
     )
     seed = check_integer("training style seed", seed, minimum=0, error=SignError)
     heads = check_heads(heads)
+    ranges = {**RANGES, "shaft_width": check_shaft_width(shaft_width)}
     rng = np.random.default_rng(seed)
     styles = []
     for _ in range(count):
-        values = {name: float(rng.uniform(low, high)) for name, (low, high) in RANGES.items()}
+        values = {name: float(rng.uniform(low, high)) for name, (low, high) in ranges.items()}
         low, high = RANGES["head_width"]  # redrawn within what the shaft allows
         low = max(low, HEAD_TO_SHAFT * values["shaft_width"])
         values["head_width"] = float(low + (high - low) * rng.random())
@@ -238,6 +251,25 @@ def check_heads(heads: object) -> tuple[str, ...]:
     if len(set(heads)) < len(heads):
         raise SignError(f"heads {list(heads)!r} lists a head twice")
     return tuple(heads)
+
+
+def check_shaft_width(shaft_width: object) -> tuple[float, float]:
+    """``shaft_width`` as a ``(low, high)`` range of shaft widths inside ``RANGES["shaft_width"]``.
+
+    ``low <= high``; anything else raises :class:`SignError` naming the bad value.
+    """
+    if isinstance(shaft_width, str) or not isinstance(shaft_width, Sequence):
+        raise SignError(f"shaft_width {shaft_width!r} is not a [low, high] range")
+    if len(shaft_width) != 2:
+        raise SignError(f"shaft_width {list(shaft_width)!r} is not a [low, high] range")
+    least, most = RANGES["shaft_width"]
+    low, high = (
+        check_number(f"shaft_width {name}", value, minimum=least, maximum=most, error=SignError)
+        for name, value in zip(("low", "high"), shaft_width, strict=True)
+    )
+    if low > high:
+        raise SignError(f"shaft_width [{low!r}, {high!r}] has its low end above its high end")
+    return low, high
 
 
 # -----------------------------------------------------------------------------
@@ -333,12 +365,16 @@ HELD_OUT_STYLES: dict[str, Callable[[int], Image.Image]] = {
 
 
 def write_sign_styles(
-    folder: str | os.PathLike, count: int, seed: int, heads: Sequence[str] = DEFAULT_HEADS
+    folder: str | os.PathLike,
+    count: int,
+    seed: int,
+    heads: Sequence[str] = DEFAULT_HEADS,
+    shaft_width: Sequence[float] = DEFAULT_SHAFT_WIDTH,
 ) -> dict[str, list[str]]:
     """Write the sign images: ``count`` training styles and the held-out styles, as PNG files.
 
     ``folder/training/arrowv0.png`` ... ``arrowv{count-1}.png`` are
-    :func:`training_styles` ``(count, seed, heads)``; ``folder/held-out/chevron.png``,
+    :func:`training_styles` ``(count, seed, heads, shaft_width)``; ``folder/held-out/chevron.png``,
     ``harpoon.png`` and ``outline.png`` the :data:`HELD_OUT_STYLES`, all
     :data:`IMAGE_SIZE` pixels square. Folders are created; files of the same
     names are overwritten. Registering a folder registers every PNG in it, so a
@@ -346,7 +382,7 @@ def write_sign_styles(
     before anything is written: that image would join the group unnoticed.
     Returns the shape names of each group: ``{"training": [...], "held-out": [...]}``.
     """
-    styles = training_styles(count, seed, heads)
+    styles = training_styles(count, seed, heads, shaft_width)
     root = Path(folder).expanduser()
     groups: dict[str, dict[str, Callable[[], Image.Image]]] = {
         TRAINING_FOLDER: {

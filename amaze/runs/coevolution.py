@@ -342,7 +342,11 @@ class CoevolutionRun(Run):
         folder = self.out / SIGNS_FOLDER
         try:
             write_sign_styles(
-                folder, options.sign_styles, options.sign_styles_seed, options.sign_styles_heads
+                folder,
+                options.sign_styles,
+                options.sign_styles_seed,
+                options.sign_styles_heads,
+                options.sign_styles_shaft_width,
             )
             register_custom_signs(folder / TRAINING_FOLDER)
         except (SignError, OSError) as problem:

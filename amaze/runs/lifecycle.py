@@ -211,6 +211,15 @@ class Run(ABC):
     def save_agent(self, agent: Any, path: Path) -> None:
         """Write the final agent (from :meth:`final_agent`) to ``path``, an agent file."""
 
+    def replayed_agent(self, path: Path, agent: Any) -> Any:
+        """The final ``agent`` as ``amaze evaluate`` plays its file ``path``: the one scored.
+
+        ``agent`` itself, unless the file is played by other code than the run's
+        (a JAX network's actor, played by evolution's compiled networks): the
+        run's last figures are then those a replay of the file gives.
+        """
+        return agent
+
     @abstractmethod
     def spent(self) -> Spent:
         """How far training is now: ``progress.csv`` position, env steps, training seconds."""
@@ -473,6 +482,7 @@ class Run(ABC):
 
         agent = self.final_agent()
         self.save_agent(agent, self.out / self.agent_file)
+        agent = self.replayed_agent(self.out / self.agent_file, agent)
         self.anytime.finish(self.spent(), agent)
         robot = self.config.robot
         summary = Evaluator(robot).evaluate(agent).summary()

@@ -191,6 +191,20 @@ class NetworkRunFiles:
             return super().load_agent(path)  # type: ignore[misc]
         return NetworkAgent.load(path)
 
+    def replayed_agent(self, path: Path, agent: Any) -> Any:
+        """A network's saved actor as ``amaze evaluate`` plays it: evolution's compiled network.
+
+        Its float32 sums differ from :class:`NetworkAgent`'s numpy ones in the last
+        bits (about 1e-6 in an acceleration), and a continuous robot's trajectory,
+        once it differs, goes its own way: the run scores the file as it is
+        replayed, so that ``summary.json`` is what ``amaze evaluate`` gives.
+        """
+        if self.config.network is None:
+            return agent
+        from amaze.evaluation.controllers import make_controller
+
+        return make_controller(str(path), self.config.robot)
+
     def network_figures(self) -> dict[str, Any]:
         """``{"network": architecture}`` with a network spec (``summary.json``), else nothing.
 

@@ -51,6 +51,8 @@ from amaze.agents.network_inputs import (
     grid_side,
     pool_blocks,
     pool_matrix,
+    pooling_problem,
+    pools_maxima,
     rotation_index,
     stride_problem,
 )
@@ -225,10 +227,12 @@ class PolicySpec:
         """
         assert self.pool is not None
         vision = int(self.parsed_robot.vision)
-        if self.pooling == "max":
-            brightest = pixels[:, xp.asarray(pool_blocks(vision, self.pool))].max(axis=-1)
+        if pools_maxima(self.pooling):
+            blocks = pool_blocks(vision, self.pool, self.pooling)
+            brightest = pixels[:, xp.asarray(blocks)].max(axis=-1)
             return brightest * np.float32(1.0 / 255.0)
-        return pixels @ xp.asarray(pool_matrix(vision, self.pool).astype(np.float32))
+        means = pool_matrix(vision, self.pool, self.pooling).astype(np.float32)
+        return pixels @ xp.asarray(means)
 
     @property
     def observation_shape(self) -> tuple[int, ...]:
@@ -350,7 +354,8 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
     ``network`` takes evolution's keys (:data:`NETWORK_KEYS`): ``hidden`` (the
     actor's and the critic's hidden widths), ``activation``, ``pool`` (image
     robots; default :data:`~amaze.agents.network_inputs.DEFAULT_POOL`),
-    ``pooling`` (``mean`` or ``max``, with a pool), ``symmetry``, and for
+    ``pooling`` (one of :data:`~amaze.agents.network_inputs.POOLINGS`, with
+    a pool), ``symmetry``, and for
     image robots ``filters`` (a convolution instead of the pool) with its
     ``stride`` (default: the largest of 3, 2, 1 that tiles the retina).
     Unknown keys and bad values raise :class:`RLConfigError`.
@@ -406,6 +411,9 @@ def network_spec(robot: str, network: Mapping[str, Any]) -> PolicySpec:
     if pooling != POOLINGS[0] and pool is None:
         image = "convolves its image" if filters else f"robot {parsed} has no image"
         raise RLConfigError(f"network pooling {pooling!r}: the network {image} to pool")
+    problem = pooling_problem(pooling, pool)
+    if problem:
+        raise RLConfigError(f"network {problem}")
     return PolicySpec(
         parsed.to_string(),
         widths,

@@ -287,6 +287,7 @@ def test_sign_styles_are_drawn_into_the_run_and_read_like_the_shapes(tmp_path: P
         "sign_styles": 2,
         "sign_styles_seed": 5,
         "sign_styles_heads": ["hollow"],
+        "sign_styles_shaft_width": [0.2, 0.3],
     }
     config = {**CONFIG, "robot": "H15", "max_generations": 4, "coevolution": options}
     path = write_config(tmp_path, config)
@@ -296,8 +297,8 @@ def test_sign_styles_are_drawn_into_the_run_and_read_like_the_shapes(tmp_path: P
         assert main(["--config", str(path), "--out", str(out), "--no-progress"]) == 0
         drawn = sorted(p.name for p in (out / "signs" / "training").iterdir())
         assert drawn == ["arrowv0.png", "arrowv1.png"]
-        style = training_styles(2, 5, ("hollow",))[1]
-        assert style.head == "hollow"
+        style = training_styles(2, 5, ("hollow",), (0.2, 0.3))[1]
+        assert style.head == "hollow" and style.shaft_width >= 0.2
         with Image.open(out / "signs" / "training" / "arrowv1.png") as image:
             assert np.array_equal(np.asarray(image), np.asarray(draw_arrow(style)))
         assert custom_sign_path("arrowv1") == (out / "signs" / "training" / "arrowv1.png").resolve()
@@ -310,6 +311,7 @@ def test_sign_styles_are_drawn_into_the_run_and_read_like_the_shapes(tmp_path: P
         summary = json.loads((out / "summary.json").read_text())
         assert summary["coevolution"]["sign_styles"] == 2
         assert summary["coevolution"]["sign_styles_heads"] == ["hollow"]
+        assert summary["coevolution"]["sign_styles_shaft_width"] == [0.2, 0.3]
     finally:
         clear_custom_signs()
     with pytest.raises(EvolutionConfigError, match=r"sign_styles 2 have no effect for robot DD"):

@@ -14,6 +14,8 @@ from evolution.networks import NetworkPopulation, NetworkSpec
 
 #: Block edges of the pooled 5x5 grid, as documented in evolution.networks.
 EDGES = {15: [0, 3, 6, 9, 12, 15], 11: [0, 2, 4, 7, 9, 11], 7: [0, 1, 3, 4, 6, 7]}
+#: The same with a ring pooling: the outermost pixel on each side alone, the inside in 3.
+RING_EDGES = {15: [0, 1, 5, 10, 14, 15], 11: [0, 1, 4, 7, 10, 11], 7: [0, 1, 3, 4, 6, 7]}
 
 ACTIVATIONS = {
     "tanh": np.tanh,
@@ -25,18 +27,19 @@ ACTIVATIONS = {
 
 def reference_inputs(robot: str, observations: np.ndarray, pooling: str = "mean") -> np.ndarray:
     """Network inputs of one batch, written out plainly: 8 floats, or pooled pixels / 255
-    (each block's mean, or with ``pooling = "max"`` its brightest pixel)."""
+    (each block's mean, or with ``pooling = "max"`` its brightest pixel; the ``-ring``
+    poolings on the ring's blocks)."""
     n = observations.shape[0]
     if robot == "DD":
         return observations.astype(np.float64)
     v = observations.shape[-1]
     images = observations.reshape(n, v, v).astype(np.float64) / 255.0
-    edges = EDGES[v]
+    edges = RING_EDGES[v] if pooling.endswith("-ring") else EDGES[v]
     out = np.zeros((n, 5, 5))
     for r in range(5):
         for c in range(5):
             block = images[:, edges[r] : edges[r + 1], edges[c] : edges[c + 1]]
-            if pooling == "max":
+            if pooling.startswith("max"):
                 out[:, r, c] = block.max(axis=(1, 2))
             else:
                 out[:, r, c] = block.sum(axis=(1, 2)) / block[0].size
@@ -135,6 +138,40 @@ def test_max_pooling_reads_each_block_s_brightest_pixel(robot):
     for parallel in (False, True):
         values = spec.population(params, parallel=parallel).forward(observations)
         np.testing.assert_allclose(values, expected, rtol=1e-4, atol=1e-4)
+
+
+@pytest.mark.parametrize("robot", ["CD15", "CD11"])
+@pytest.mark.parametrize("pooling", ["mean-ring", "max-ring"])
+def test_ring_pooling_keeps_the_outermost_pixels_in_blocks_of_their_own(robot, pooling):
+    rng = np.random.default_rng(22)
+    spec = NetworkSpec(robot, (6,), pooling=pooling)
+    assert spec.n_inputs == 25 and NetworkSpec.from_dict(spec.to_dict()) == spec
+    params = spec.initial_params(rng, 3) + rng.normal(0, 0.3, (3, spec.n_params))
+    observations = random_observations(spec.robot, 3 * 70, rng)
+    expected_inputs = reference_inputs(spec.robot, observations, pooling)
+    np.testing.assert_allclose(spec.encode(observations), expected_inputs, rtol=1e-6)
+    plain = NetworkSpec(robot, (6,), pooling=pooling.removesuffix("-ring"))
+    assert not np.allclose(plain.encode(observations), expected_inputs)  # not a no-op
+    expected = reference_outputs(spec, params, observations)
+    for parallel in (False, True):
+        values = spec.population(params, parallel=parallel).forward(observations)
+        np.testing.assert_allclose(values, expected, rtol=1e-4, atol=1e-4)
+
+
+def test_a_signs_edge_lights_no_wall_block_with_a_ring():
+    # why the ring: a hybrid robot's sign fills pixels 1..13 of its 15 x 15 cell, walls
+    # and the arrival marker are pixels 0 and 14; even blocks mix the two
+    sign_edge = np.zeros((1, 15, 15), np.uint8)
+    sign_edge[0, 7, 1] = 255  # the sign's westmost pixel, beside the west wall's
+    wall = np.zeros((1, 15, 15), np.uint8)
+    wall[0, :, 0] = 255
+    west = 3 * 7 + 0  # the middle block of the 7 x 7 grid's west column
+    for pooling, lit in (("max", True), ("max-ring", False)):
+        spec = NetworkSpec("H15", pool=7, pooling=pooling)
+        assert (spec.encode(sign_edge)[0, west] > 0) == lit
+        assert spec.encode(wall)[0, west] == 1.0
+    with pytest.raises(EvolutionConfigError, match="pool 2: the ring"):
+        NetworkSpec("H15", pool=2, pooling="max-ring")
 
 
 def test_max_pooling_sees_a_stroke_at_its_lightness_whatever_its_width():

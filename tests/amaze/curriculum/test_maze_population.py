@@ -373,3 +373,12 @@ def test_sign_styles_join_the_shapes_family_mazes_are_drawn_in(tmp_path: Path) -
     for bad, named in ((["round"], "'round'"), ([], r"\[\]"), ("hollow", "'hollow'")):
         with pytest.raises(CoevolutionError, match=f"sign_styles_heads: .*{named}"):
             MazePopulationConfig(sign_styles=2, sign_styles_heads=bad)
+    wide = MazePopulationConfig(sign_styles=2, sign_styles_shaft_width=[0.1, 0.3])
+    assert wide.sign_styles_shaft_width == (0.1, 0.3)
+    assert wide.to_dict()["sign_styles_shaft_width"] == [0.1, 0.3]
+    assert MazePopulationConfig().to_dict()["sign_styles_shaft_width"] == [0.05, 0.16]
+    with pytest.raises(CoevolutionError, match=r"shaft_width \[0.1, 0.3\] needs sign_styles"):
+        MazePopulationConfig(sign_styles_shaft_width=[0.1, 0.3])
+    for bad, named in (([0.1], r"\[0.1\]"), ([0.1, 0.4], "0.4"), ([0.2, 0.1], "low end")):
+        with pytest.raises(CoevolutionError, match=f"sign_styles_shaft_width: .*{named}"):
+            MazePopulationConfig(sign_styles=2, sign_styles_shaft_width=bad)

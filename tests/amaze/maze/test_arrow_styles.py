@@ -13,6 +13,7 @@ from amaze.agents.observations import cell_image
 from amaze.cli.main import main
 from amaze.errors import SignError
 from amaze.maze.arrow_styles import (
+    DEFAULT_SHAFT_WIDTH,
     HEADS,
     HELD_OUT_STYLES,
     MIN_SHAFT,
@@ -109,6 +110,19 @@ def test_hollow_heads_are_drawn_only_when_asked_for_and_keep_the_rest_of_the_sty
     for a, b in zip(plain, hollow, strict=True):  # the same draws but the heads
         assert dataclasses.replace(a, head=b.head) == b
     assert {s.head for s in training_styles(32, 3, ("hollow",))} == {"hollow"}
+
+
+def test_wider_shafts_are_drawn_only_when_asked_for_and_keep_the_rest_of_the_style():
+    thin, wide = training_styles(64, 3), training_styles(64, 3, shaft_width=(0.05, 0.3))
+    assert training_styles(64, 3, shaft_width=DEFAULT_SHAFT_WIDTH) == thin
+    assert max(s.shaft_width for s in thin) <= DEFAULT_SHAFT_WIDTH[1]
+    assert max(s.shaft_width for s in wide) > 0.25  # up to 4 pixels of a 13-pixel sign
+    assert all(0.05 <= s.shaft_width <= 0.3 for s in wide)
+    for a, b in zip(thin, wide, strict=True):  # the same draws but the widths
+        assert b.shaft_width >= a.shaft_width and b.head_width >= 2 * b.shaft_width
+        assert dataclasses.replace(a, shaft_width=b.shaft_width, head_width=b.head_width) == b
+    narrow = training_styles(8, 3, shaft_width=(0.2, 0.2))
+    assert {s.shaft_width for s in narrow} == {0.2}
 
 
 def test_a_hollow_head_is_the_contour_of_the_filled_one():
@@ -211,6 +225,12 @@ def test_held_out_drawings_are_square_white_on_transparent(name):
         (lambda: training_styles(4, 1, heads=()), "()"),
         (lambda: training_styles(4, 1, heads="open"), "'open'"),
         (lambda: training_styles(4, 1, heads=("open", "open")), "twice"),
+        (lambda: training_styles(4, 1, shaft_width=(0.1, 0.31)), "0.31"),
+        (lambda: training_styles(4, 1, shaft_width=(0.01, 0.1)), "0.01"),
+        (lambda: training_styles(4, 1, shaft_width=(0.2, 0.1)), "low end"),
+        (lambda: training_styles(4, 1, shaft_width=(0.1,)), "[0.1]"),
+        (lambda: training_styles(4, 1, shaft_width="thin"), "'thin'"),
+        (lambda: training_styles(4, 1, shaft_width=(0.1, float("nan"))), "nan"),
         (lambda: draw_arrow(ArrowStyle(), 4), "4"),
         (lambda: HELD_OUT_STYLES["chevron"](2000), "2000"),
     ],
@@ -224,7 +244,7 @@ def test_every_training_style_differs_from_every_held_out_style():
     held_out = {name: gray(draw(64)) for name, draw in HELD_OUT_STYLES.items()}
     nearest = dict.fromkeys(held_out, np.inf)
     for seed in (0, 1):
-        for style in training_styles(64, seed):
+        for style in [*training_styles(64, seed), *training_styles(64, seed, HEADS, (0.05, 0.3))]:
             pixels = gray(draw_arrow(style, 64))
             for name, other in held_out.items():
                 distance = min(np.abs(pixels - np.rot90(other, k)).mean() for k in range(4))
@@ -343,4 +363,19 @@ def test_cli_draws_the_heads_asked_for(tmp_path, capsys):
         assert np.array_equal(np.asarray(image), np.asarray(draw_arrow(style)))
     status, out, err = run_cli(capsys, "draw-signs", str(tmp_path / "b"), "--heads", "round")
     assert status == 2 and "'round'" in err and "Traceback" not in err
+
+
+def test_cli_draws_the_shaft_widths_asked_for(tmp_path, capsys):
+    status, out, _ = run_cli(
+        capsys, "draw-signs", str(tmp_path / "w"), "--training", "2", "--shaft-width", "0.2,0.3"
+    )
+    assert status == 0
+    assert '"sign_styles_shaft_width": [0.2, 0.3]' in out
+    style = training_styles(2, 0, shaft_width=(0.2, 0.3))[1]
+    with Image.open(tmp_path / "w" / "training" / "arrowv1.png") as image:
+        assert np.array_equal(np.asarray(image), np.asarray(draw_arrow(style)))
+    for bad in ("0.2", "0.2,0.4", "thin,wide", "0.3,0.2"):
+        status, out, err = run_cli(capsys, "draw-signs", str(tmp_path / "b"), "--shaft-width", bad)
+        assert status == 2 and "--shaft-width" in err and "Traceback" not in err, (bad, err)
+        assert not (tmp_path / "b").exists()
     assert not (tmp_path / "b").exists()

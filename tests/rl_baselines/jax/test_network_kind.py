@@ -27,6 +27,8 @@ NETWORKS = [
     ("H15", {"hidden": [], "pool": 3, "activation": "sigmoid"}),
     ("H15", {"hidden": [16], "symmetry": "rotations", "pooling": "max"}),
     ("H11", {"hidden": [8], "pooling": "max"}),  # blocks of unequal sizes
+    ("H15", {"hidden": [8], "symmetry": "rotations", "pooling": "max-ring", "pool": 7}),
+    ("H11", {"hidden": [8], "pooling": "mean-ring"}),
     ("H15", {"hidden": [16], "filters": 4, "symmetry": "rotations"}),
     ("H11", {"hidden": [8], "filters": 3, "activation": "relu"}),
     ("H7", {"hidden": [], "filters": 2, "stride": 1, "symmetry": "rotations"}),
@@ -145,6 +147,7 @@ def test_jax_numpy_and_an_evolved_network_agree(robot: str, network: dict) -> No
         ("H15", {"pooling": "median"}, "network pooling 'median' is not one of mean, max"),
         ("DD", {"pooling": "max"}, "network pooling 'max': the network robot DD has no image"),
         ("H15", {"filters": 2, "pooling": "max"}, "the network convolves its image"),
+        ("H15", {"pool": 2, "pooling": "max-ring"}, "pool 2: the ring takes"),
         ("DD", {"symmetry": "mirror"}, "network symmetry 'mirror'"),
         ("DD", {"activation": "gelu"}, "network activation 'gelu'"),
         ("DD", {"hidden": [0]}, "network hidden"),

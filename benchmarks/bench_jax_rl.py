@@ -18,12 +18,20 @@ on one CPU core:
 ``--ppo-steps``/``--a2c-steps``/``--sb3-steps`` to keep it short (the CNN
 costs far more per step than the MLP).
 
+``--robot CC7`` (or another continuous robot) measures continuous actions: SB3
+with its small CNN and diagonal Gaussian on :class:`~rl_baselines.vec_env.SB3VecEnv`,
+the JAX learners with a Gaussian over a ``network`` (JSON, ``--network``; for
+continuous robots the ``fast`` preset's, ``{"hidden": [16], "symmetry":
+"rotations"}``, by default: the JAX learners have no SB3-kind Gaussian policy).
+``--network`` also puts a network in the JAX learners of a discrete robot.
+
 One core: the process pins itself to one CPU (``os.sched_setaffinity``, as
 ``taskset -c <cpu>``; ``--cpu``) before importing JAX, and sets
 ``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``
 (XLA's CPU runtime then runs single-threaded) and ``torch.set_num_threads(1)``.
 
-Usage: ``python benchmarks/bench_jax_rl.py [--robot DD] [--repeats 3] [--full] [--json]``.
+Usage: ``python benchmarks/bench_jax_rl.py [--robot DD] [--network JSON] [--repeats 3] [--full]
+[--json]``.
 """
 
 from __future__ import annotations
@@ -67,14 +75,18 @@ def learn_rate(trainer: Any, steps: int, repeats: int) -> tuple[float, float]:
     return statistics.median(rates), first_call
 
 
-def jax_rates(algo: str, steps: int, repeats: int, robot: str = "DD") -> dict[str, Any]:
+def jax_rates(
+    algo: str, steps: int, repeats: int, robot: str = "DD", network: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """JAX ``algo``'s env steps/s of ``learn(steps)``, after a compiling first call."""
 
     from amaze.evaluation.suite import PAPER_TRAINING_MAZE
     from amaze.maze import rotations
     from rl_baselines.jax import JaxTrainer
 
-    trainer = JaxTrainer(algo, robot, rotations(PAPER_TRAINING_MAZE), {}, seed=0, n_envs=4)
+    trainer = JaxTrainer(
+        algo, robot, rotations(PAPER_TRAINING_MAZE), {}, seed=0, n_envs=4, network=network
+    )
     rate, compile_s = learn_rate(trainer, steps, repeats)
     return {
         "algo": f"jax-{algo}",
@@ -129,7 +141,14 @@ def full_ppo_run(total: int) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", default="DD", help="DD, or a hybrid robot such as H15")
+    parser.add_argument(
+        "--robot", default="DD", help="DD, a hybrid robot (H15) or a continuous one (CC7)"
+    )
+    parser.add_argument(
+        "--network", type=json.loads, metavar="JSON",
+        help="the JAX learners' network spec (default: SB3's policy; the fast preset's for"
+        " continuous robots)",
+    )  # fmt: skip
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--ppo-steps", type=int, default=8 * 8192, help="JAX PPO steps/repeat")
     parser.add_argument("--a2c-steps", type=int, default=200_000, help="JAX A2C steps/repeat")
@@ -141,10 +160,20 @@ def main() -> None:
     args = parser.parse_args()
     if args.full and args.robot != "DD":
         parser.error(f"--full times the paper's 3 M-step DD run, not robot {args.robot}")
+    from amaze.agents import as_robot
+    from rl_baselines.presets import FAST_NETWORK
+
+    try:
+        continuous = not as_robot(args.robot).discrete_outputs
+    except ValueError as error:
+        parser.error(f"--robot {args.robot}: {error}")
+    network = args.network if args.network is not None or not continuous else FAST_NETWORK
+    if network is not None and not isinstance(network, dict):
+        parser.error(f"--network {network!r}: a JSON object, e.g. '{{\"hidden\": [16]}}'")
     _one_core(args.cpu)
     rows = [
-        jax_rates("ppo", args.ppo_steps, args.repeats, args.robot),
-        jax_rates("a2c", args.a2c_steps, args.repeats, args.robot),
+        jax_rates("ppo", args.ppo_steps, args.repeats, args.robot, network),
+        jax_rates("a2c", args.a2c_steps, args.repeats, args.robot, network),
         sb3_rates("ppo", args.sb3_steps, args.repeats, args.robot),
         sb3_rates("a2c", args.sb3_steps, args.repeats, args.robot),
     ]
@@ -152,8 +181,9 @@ def main() -> None:
     if args.json:
         print(json.dumps({"training": rows, "full_ppo_run": full}, indent=2))
         return
+    jax_policy = "SB3's policy" if network is None else f"network {json.dumps(network)}"
     print(f"{args.robot}, 4 envs, training maze rotations, SB3 defaults, 1 core (cpu {args.cpu}), "
-          f"median of {args.repeats}")  # fmt: skip
+          f"median of {args.repeats}; JAX learners: {jax_policy}")  # fmt: skip
     print(f"{'learner':>8} {'env steps/s':>12} {'first call s':>13}")
     for r in rows:
         first = f"{r['first_call_s']:>13.1f}" if "first_call_s" in r else f"{'':>13}"

@@ -1,28 +1,35 @@
-"""Can an evolution network drive a robot at all? Taught by the oracle, on family mazes.
+"""Teach an evolution network the oracle's actions on family mazes; score it on the suites.
 
-    python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16] [--pool 5]
+    python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16 [16 ...]] [--pool 5]
         [--pooling mean] [--filters F --stride S] [--iterations 10] [--mazes 64] [--seed 0]
-        [--out FILE.npz] [--csv FILE]
+        [--learning-rate-decay 1] [--keep last|best] [--out FILE.npz] [--csv FILE]
 
-CMA-ES has not made a continuous robot reach the goals of the paper's suite
-(docs/robots.md). Is the network unable to drive one, or is the search the
-obstacle? :func:`evolution.imitation.imitate` teaches a network of the
-evolution's kind (the pooled image, the weights shared by the four directions,
-the ``(tanh(s_E - s_W), tanh(s_N - s_S))`` accelerations) the actions of the
-oracle, which knows the way, by DAgger on mazes of the paper's training family
-(new seeds, never the suite's). After each iteration it prints the network's
-success and path progress on unseen family mazes (32, one episode each); at the
-end, success, path progress and mean R̄ on the paper's suite (72 episodes).
-Other robots work too (``--robot H15``, ``--robot DD``: taught the oracle's
-directions); ``--pool`` is for image robots, and so are ``--filters`` (a
-convolutional network: F evolved 3x3 filters slid with ``--stride`` over the
-image instead of pooling it, :mod:`evolution.convolution`).
+:func:`evolution.imitation.imitate` teaches a network of evolution's kind (the
+pooled image, the weights shared by the four directions, the
+``(tanh(s_E - s_W), tanh(s_N - s_S))`` accelerations) the actions of the
+oracle, which knows the way, by DAgger on ``--mazes`` mazes of the paper's
+training family (new seeds, never a suite's). After each iteration it prints
+the network's success and path progress on 64 validation mazes of the family
+and on 32 unseen ones (one episode each). It hands over the last iteration's
+network (``--keep last``, the default) or the one with the highest validation
+success, then path progress (``--keep best``; the unseen mazes and the suites
+play no part in the choice), and prints that network's success, path progress
+and mean R̄ on the paper's suite and on the standard suite (72 episodes each;
+the standard suite is what runs and ``amaze evaluate AGENT suite`` report).
+``--learning-rate-decay D`` multiplies the learning rate by ``D`` per
+iteration. Other robots work too (``--robot H15``, ``--robot DD``: taught the
+oracle's directions); ``--pool`` is for image robots, and so are ``--filters``
+(a convolutional network: F evolved 3x3 filters slid with ``--stride`` over
+the image instead of pooling it, :mod:`evolution.convolution`).
 
-A network that drives the suite this way can represent a solution, and
-CMA-ES's failure with it is one of search (fitness, curriculum, budget); one
-that cannot is too small or sees too little. The agent file ``--out`` writes is
-not a training result: its teacher knew the way. ``--csv FILE`` writes the
-run's figures as one row (the network, the last iteration's, the suite's).
+Two uses. A capacity check: a network that drives the suite this way can
+represent a solution, and CMA-ES's failure with it is one of search (fitness,
+curriculum, budget); one that cannot is too small or sees too little. And a
+trainer with a privileged teacher: the teacher knows each maze's solution
+while teaching, the agent ``--out`` writes sees only its own inputs; its
+results are reported apart from those of RL and evolution, which learn from
+rewards alone (docs/robots.md). ``--csv FILE`` writes the run's figures as one
+row (the network, the kept iteration's, the suites').
 """
 
 from __future__ import annotations
@@ -35,13 +42,16 @@ from pathlib import Path
 import numpy as np
 
 from amaze.curriculum.validation import unseen_mazes, validation_mazes
-from amaze.evaluation.suite import PAPER_TRAINING_MAZE, paper_suite
+from amaze.evaluation.suite import PAPER_TRAINING_MAZE, paper_suite, standard_suite
 from amaze.runs.folder import write_rows
 from evolution.agent_file import save_network_agent
 from evolution.config import EvolutionConfigError
 from evolution.imitation import ImitationConfig, imitate
 from evolution.networks import NetworkSpec
 from evolution.population import PopulationEvaluator
+
+#: Family mazes (apart from the taught and the unseen) that ``--keep best`` selects on.
+VALIDATION = 64
 
 
 def score(spec: NetworkSpec, params: np.ndarray, mazes: list[str]) -> tuple[float, float, float]:
@@ -69,6 +79,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--iterations", type=int, default=10)
     parser.add_argument("--mazes", type=int, default=64, help="training family mazes")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--learning-rate-decay", type=float, default=1.0,
+        help="the learning rate's factor per iteration (default 1: constant)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--keep", choices=("last", "best"), default="last",
+        help="hand over the last iteration's network or the best on validation mazes",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the taught network as an agent file")
     parser.add_argument("--csv", type=Path, metavar="FILE", help="write the figures to FILE")
     args = parser.parse_args(argv)
@@ -85,12 +103,18 @@ def main(argv: list[str] | None = None) -> int:
             pooling=args.pooling, symmetry="rotations", filters=args.filters,
             stride=args.stride,
         )  # fmt: skip
-        config = ImitationConfig(iterations=args.iterations, seed=args.seed)
+        config = ImitationConfig(
+            iterations=args.iterations, seed=args.seed,
+            learning_rate_decay=args.learning_rate_decay, keep=args.keep,
+        )  # fmt: skip
         mazes = validation_mazes(PAPER_TRAINING_MAZE, args.mazes, 10_000 + args.seed)
     except (EvolutionConfigError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     family = unseen_mazes(PAPER_TRAINING_MAZE, args.seed)
+    drawn = validation_mazes(PAPER_TRAINING_MAZE, VALIDATION + len(mazes) + len(family),
+                             20_000 + args.seed)  # fmt: skip
+    validation = [maze for maze in drawn if maze not in {*mazes, *family}][:VALIDATION]
     if spec.filters:
         inputs = f"{spec.filters} filters, stride {spec.stride} ({spec.n_inputs} maps' pixels)"
     elif spec.pool is not None:
@@ -98,43 +122,60 @@ def main(argv: list[str] | None = None) -> int:
     else:
         inputs = f"{spec.n_inputs} inputs"
     print(f"{spec.robot}, hidden {list(spec.hidden)}, {inputs}, {spec.n_params} parameters;"
-          f" taught on {len(mazes)} family mazes, scored on {len(family)} others")  # fmt: skip
+          f" taught on {len(mazes)} family mazes, validated on {len(validation)} others,"
+          f" scored on {len(family)} others; hands over the {args.keep} network")  # fmt: skip
     start = time.perf_counter()
     row: dict[str, object] = {
         "robot": spec.robot, "hidden": " ".join(map(str, spec.hidden)), "pool": spec.pool,
         "pooling": spec.pooling, "filters": spec.filters, "stride": spec.stride,
-        "parameters": spec.n_params, "seed": args.seed,
+        "parameters": spec.n_params, "seed": args.seed, "mazes": len(mazes),
+        "learning_rate_decay": args.learning_rate_decay, "keep": args.keep,
+        "iterations": args.iterations,
     }  # fmt: skip
+    family_scores: list[tuple[float, float]] = []
 
     def report(record: dict[str, float], params: np.ndarray) -> None:
         success, progress, _ = score(spec, params, family)
-        row.update(
-            iterations=int(record["iteration"]) + 1, samples=int(record["samples"]),
-            loss=record["loss"], family_success=success, family_progress=progress,
-        )  # fmt: skip
+        family_scores.append((success, progress))
         print(f"iteration {record['iteration']:2.0f}  beta {record['beta']:.3f}"
               f"  samples {record['samples']:>9.0f}  loss {record['loss']:.4f}"
+              f"  validation success {record['validation_success']:.3f}"
+              f"  progress {record['validation_progress']:.3f}"
               f"  family success {success:.3f}  progress {progress:.3f}"
               f"  ({time.perf_counter() - start:.0f} s)", flush=True)  # fmt: skip
 
-    result = imitate(spec, mazes, config, on_iteration=report)
-    suite = paper_suite().maze_strings()
-    success, progress, reward = score(spec, result.params, suite)
-    print(f"paper suite ({len(suite)} episodes): success {success:.3f}"
-          f"  path progress {progress:.3f}  mean R̄ {reward:+.3f}")  # fmt: skip
+    result = imitate(spec, mazes, config, validation=validation, on_iteration=report)
+    kept = result.history[result.kept_iteration]
     row.update(
-        suite_success=success, suite_progress=progress, suite_reward=reward,
-        seconds=round(time.perf_counter() - start, 1),
+        kept_iteration=result.kept_iteration, samples=int(kept["samples"]), loss=kept["loss"],
+        validation_success=kept["validation_success"],
+        validation_progress=kept["validation_progress"],
+        family_success=family_scores[result.kept_iteration][0],
+        family_progress=family_scores[result.kept_iteration][1],
     )  # fmt: skip
+    params = result.params
+    print(f"handed over: the network after iteration {result.kept_iteration} ({args.keep})")
+    for name, suite, prefix in (
+        ("paper suite", paper_suite(), "suite"), ("standard suite", standard_suite(), "standard"),
+    ):  # fmt: skip
+        mazes_played = suite.maze_strings()
+        success, progress, reward = score(spec, params, mazes_played)
+        print(f"{name} ({len(mazes_played)} episodes): success {success:.3f}"
+              f"  path progress {progress:.3f}  mean R̄ {reward:+.3f}")  # fmt: skip
+        row.update({
+            f"{prefix}_success": success, f"{prefix}_progress": progress,
+            f"{prefix}_reward": reward,
+        })  # fmt: skip
+    row.update(seconds=round(time.perf_counter() - start, 1))
     if args.csv is not None:
         write_rows(args.csv, [row])
         print(f"figures written to {args.csv}")
     if args.out is not None:
         path = save_network_agent(
-            args.out, spec, result.params, algorithm="oracle imitation (DAgger)",
+            args.out, spec, params, algorithm="oracle imitation (DAgger)",
             seed=args.seed, mazes=mazes,
         )  # fmt: skip
-        print(f"taught network written to {path} (not a training result: its teacher knew the way)")
+        print(f"taught network written to {path} (its teacher knew each maze's solution)")
     return 0
 
 

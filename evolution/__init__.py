@@ -22,8 +22,9 @@
 * :mod:`evolution.learner`, :mod:`evolution.curriculum`: evolution as a
   curriculum learner, and the curriculum regimes (``--regime edhucat``,
   ``--regime interpolation``) of ``amaze-evolve``;
-* :mod:`evolution.imitation`: a capacity check, the oracle's actions taught
-  to a network by DAgger (torch, imported only there and only when used).
+* :mod:`evolution.imitation`: the oracle's actions taught to a network by
+  DAgger, a capacity check and a trainer with a privileged teacher (torch,
+  imported only there and only when used).
 """
 
 from __future__ import annotations

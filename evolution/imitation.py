@@ -1,4 +1,4 @@
-"""Can a network of this kind drive this robot? Teach it the oracle's actions and see.
+"""Teach a network the oracle's actions: can it drive this robot, and how well?
 
 Evolution searches a :class:`~evolution.networks.NetworkSpec`'s parameters for a
 policy; when it finds none, the network may be unable to represent one (too
@@ -13,15 +13,25 @@ the network's otherwise, labels every observation with the oracle's action,
 and fits the network on all observations so far (the newest
 ``max_samples``): continuous robots by the squared error of the
 accelerations, discrete ones by the cross-entropy of the direction scores.
+Iteration ``i``'s Adam steps take ``learning_rate * learning_rate_decay ** i``
+(a decay under 1 lets the late iterations, where the network drives itself,
+settle instead of moving as far as the first). Given validation mazes, each
+iteration's network is scored on them (success rate and path progress, one
+episode each), and ``keep = "best"`` hands over the network with the highest
+success, then path progress, instead of the last: late iterations can lose
+what earlier ones taught (measured on CC7, docs/robots.md).
 The parameters come back in the spec's own layout, so the taught network is
 an ordinary agent (:func:`evolution.agent_file.save_network_agent`) scored
 by the usual evaluators.
 
-A taught network is a capacity check, not a training result: its teacher
-knows the way. ``benchmarks/bench_oracle_imitation.py`` runs it and scores
-the network on the paper's suite. The teacher of a continuous robot steers
-without braking by default (``damping = 0``: the image shows no velocity,
-and this law solves the suite, see :class:`OracleController`).
+Two uses. A capacity check: a network that cannot be taught to drive cannot
+be evolved to. And a trainer with a privileged teacher: the teacher knows
+each maze's solution while teaching, the taught network sees only its own
+inputs, so its results are reported apart from those of RL and evolution,
+which learn from rewards alone. ``benchmarks/bench_oracle_imitation.py``
+runs it and scores the network on the suites. The teacher of a continuous
+robot steers without braking by default (``damping = 0``: the image shows no
+velocity, and this law solves the suite, see :class:`OracleController`).
 
 torch is imported when a network is built, not with this module.
 """
@@ -42,12 +52,15 @@ from amaze.validation import check_integer, check_number
 from .config import EvolutionConfigError
 from .convolution import FILTER_SIDE
 from .networks import NetworkSpec
+from .population import PopulationEvaluator
 
 __all__ = ["ImitationConfig", "ImitationResult", "imitate", "network_inputs", "torch_network"]
 
 #: The continuous teacher's gain and damping (see the module docstring).
 TEACHER_GAIN = 2.0
 TEACHER_DAMPING = 0.0
+#: Which network :func:`imitate` hands over: the last iteration's or the best on validation.
+KEEP = ("last", "best")
 #: Bounds of the config's counts: ``max_samples`` keeps the samples held in memory
 #: under about 9 GB for a 15 x 15 image read pixel by pixel (225 float32 inputs; a
 #: convolutional network keeps the uint8 images, a quarter of that).
@@ -63,7 +76,10 @@ class ImitationConfig:
 
     ``agents`` robots are driven at once for ``steps`` batch steps per
     iteration (their episodes go on across iterations); the network then takes
-    ``updates`` Adam steps of ``batch`` samples at ``learning_rate``.
+    ``updates`` Adam steps of ``batch`` samples at ``learning_rate``, times
+    ``learning_rate_decay`` per iteration (1: the same rate throughout).
+    ``keep``: the network handed over, the ``"last"`` iteration's or the
+    ``"best"`` on the validation mazes (which :func:`imitate` then needs).
     """
 
     iterations: int = 10
@@ -72,8 +88,10 @@ class ImitationConfig:
     updates: int = 1500
     batch: int = 4096
     learning_rate: float = 3e-3
+    learning_rate_decay: float = 1.0
     max_samples: int = 3_000_000
     seed: int = 0
+    keep: str = "last"
 
     def __post_init__(self) -> None:
         for name in ("iterations", "agents", "steps", "updates", "batch", "max_samples"):
@@ -86,14 +104,22 @@ class ImitationConfig:
             "learning_rate", self.learning_rate, minimum=0.0, strict_minimum=True,
             error=EvolutionConfigError,
         )  # fmt: skip
+        check_number(
+            "learning_rate_decay", self.learning_rate_decay, minimum=0.0, maximum=1.0,
+            strict_minimum=True, error=EvolutionConfigError,
+        )  # fmt: skip
+        if self.keep not in KEEP:
+            raise EvolutionConfigError(f"keep {self.keep!r} is not one of {', '.join(KEEP)}")
 
 
 @dataclass
 class ImitationResult:
-    """The taught parameters (``(spec.n_params,)``, float64) and one record per iteration."""
+    """The network handed over (``(spec.n_params,)``, float64), one record per iteration,
+    and the iteration whose network it is (``config.keep``)."""
 
     params: np.ndarray
     history: list[dict[str, float]] = field(default_factory=list)
+    kept_iteration: int = -1
 
 
 def network_inputs(spec: NetworkSpec, observations: np.ndarray) -> np.ndarray:
@@ -202,18 +228,27 @@ def imitate(
     mazes: Sequence[Maze | MazeSpec | str],
     config: ImitationConfig | None = None,
     *,
+    validation: Sequence[Maze | MazeSpec | str] = (),
     on_iteration: Callable[[dict[str, float], np.ndarray], None] | None = None,
 ) -> ImitationResult:
     """Teach ``spec``'s network the oracle's actions on ``mazes`` by DAgger.
 
     ``on_iteration(record, params)`` hears of each iteration (``iteration``,
-    ``beta``, ``samples``, ``loss``: the last batch's) with the parameters so
-    far. The same spec, mazes and config give the same parameters on one
-    machine (torch's CPU kernels may round differently elsewhere).
+    ``beta``, ``samples``, ``loss``: the last batch's, ``learning_rate``, and
+    with ``validation`` mazes ``validation_success`` and
+    ``validation_progress``) with that iteration's parameters. The same spec,
+    mazes and config give the same parameters on one machine (torch's CPU
+    kernels may round differently elsewhere).
     """
     import torch
 
     config = config or ImitationConfig()
+    if config.keep == "best" and not validation:
+        raise EvolutionConfigError('keep "best" needs validation mazes to choose on')
+    judge = None
+    if validation:
+        judge = PopulationEvaluator(list(validation), spec.robot, fitness="path_progress")
+    best_key = (-1.0, -1.0)
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     engine = BatchEngine(list(mazes), spec.robot, config.agents)
@@ -253,6 +288,9 @@ def imitate(
         inputs = np.concatenate([inputs, *new_inputs])[-config.max_samples :]
         labels = np.concatenate([labels, *new_labels])[-config.max_samples :]
         x, y = torch.as_tensor(inputs), torch.as_tensor(labels)
+        learning_rate = config.learning_rate * config.learning_rate_decay**iteration
+        for group in optimiser.param_groups:
+            group["lr"] = learning_rate
         for _ in range(config.updates):
             batch = torch.as_tensor(rng.integers(0, len(x), config.batch))
             output = network(x[batch])
@@ -263,12 +301,19 @@ def imitate(
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
-        result.params = network.flat_params()
+        params = network.flat_params()
         record = {
             "iteration": float(iteration), "beta": beta, "samples": float(len(x)),
-            "loss": float(loss.item()),
+            "loss": float(loss.item()), "learning_rate": learning_rate,
         }  # fmt: skip
+        key = best_key
+        if judge is not None:
+            scores = judge.evaluate(spec.population(params[None, :]))
+            key = (float(scores.success_rate[0]), float(scores.fitness[0]))
+            record.update(validation_success=key[0], validation_progress=key[1])
+        if config.keep == "last" or key > best_key:
+            best_key, result.params, result.kept_iteration = key, params, iteration
         result.history.append(record)
         if on_iteration is not None:
-            on_iteration(record, result.params)
+            on_iteration(record, params)
     return result

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -66,6 +69,21 @@ def test_bad_counts_are_refused() -> None:
         ImitationConfig(max_samples=10**9)
     with pytest.raises(EvolutionConfigError, match="learning_rate"):
         ImitationConfig(learning_rate=0.0)
+    for decay in (0.0, 1.5, float("nan"), "0.5"):
+        with pytest.raises(EvolutionConfigError, match="learning_rate_decay"):
+            ImitationConfig(learning_rate_decay=decay)
+
+
+def test_the_learning_rate_decays_by_iteration() -> None:
+    """Iteration i's Adam steps take learning_rate * decay ** i, and it changes the network."""
+    spec = NetworkSpec(robot="DD", hidden=(), symmetry="rotations")
+    mazes = ["M1_6x6_U", "M2_7x5_U"]
+    config = ImitationConfig(iterations=3, agents=16, steps=30, updates=50, batch=64, seed=1)
+    constant = imitate(spec, mazes, config)
+    decayed = imitate(spec, mazes, dataclasses.replace(config, learning_rate_decay=0.5))
+    assert [r["learning_rate"] for r in constant.history] == [3e-3] * 3
+    assert [r["learning_rate"] for r in decayed.history] == [3e-3, 1.5e-3, 0.75e-3]
+    assert not np.array_equal(constant.params, decayed.params)
 
 
 def test_dagger_teaches_a_discrete_robot_to_follow_unseen_corridors() -> None:
@@ -88,3 +106,46 @@ def test_dagger_teaches_a_discrete_robot_to_follow_unseen_corridors() -> None:
     assert evaluator.evaluate(spec.population(untaught[None, :])).success_rate[0] < 1.0
     again = imitate(spec, ["M1_6x6_U", "M2_7x5_U"], config)
     np.testing.assert_array_equal(again.params, result.params)  # same seed, same network
+
+
+def test_keep_best_hands_over_the_best_network_on_the_validation_mazes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Each iteration is scored on the validation mazes; "best" keeps the highest success,
+    then path progress (the first of equals), "last" the last iteration's network."""
+    scripted = iter([(0.25, 0.4), (0.5, 0.6), (0.5, 0.7), (0.5, 0.7), (0.125, 0.9)] * 2)
+
+    class Scripted:
+        def __init__(self, mazes: list[str], robot: str, *, fitness: str) -> None:
+            assert mazes == ["M11_8x8_U"] and fitness == "path_progress"
+
+        def evaluate(self, population: object) -> SimpleNamespace:
+            success, progress = next(scripted)
+            return SimpleNamespace(success_rate=np.array([success]), fitness=np.array([progress]))
+
+    monkeypatch.setattr("evolution.imitation.PopulationEvaluator", Scripted)
+    spec = NetworkSpec(robot="DD", hidden=(), symmetry="rotations")
+    config = ImitationConfig(iterations=5, agents=16, steps=20, updates=20, batch=64, keep="best")
+    seen: list[np.ndarray] = []
+    best = imitate(
+        spec, ["M1_6x6_U"], config, validation=["M11_8x8_U"],
+        on_iteration=lambda record, params: seen.append(params),
+    )  # fmt: skip
+    assert best.kept_iteration == 2
+    np.testing.assert_array_equal(best.params, seen[2])
+    assert [r["validation_success"] for r in best.history] == [0.25, 0.5, 0.5, 0.5, 0.125]
+    assert [r["validation_progress"] for r in best.history] == [0.4, 0.6, 0.7, 0.7, 0.9]
+    last = imitate(
+        spec, ["M1_6x6_U"], dataclasses.replace(config, keep="last"), validation=["M11_8x8_U"]
+    )
+    assert last.kept_iteration == 4
+    np.testing.assert_array_equal(last.params, seen[4])  # same seed: the same iterations
+    assert not np.array_equal(best.params, last.params)
+
+
+def test_keep_best_needs_validation_mazes_and_keep_is_checked() -> None:
+    spec = NetworkSpec(robot="DD", hidden=(), symmetry="rotations")
+    with pytest.raises(EvolutionConfigError, match="validation mazes"):
+        imitate(spec, ["M1_6x6_U"], ImitationConfig(iterations=1, keep="best"))
+    with pytest.raises(EvolutionConfigError, match="keep 'first'"):
+        ImitationConfig(keep="first")

@@ -93,8 +93,10 @@ class NumpyPolicy:
                 continue
             if layer is None:
                 raise RLConfigError(f"policy parameters: module {module!r} is missing")
-            weight = np.asarray(layer["weight"], np.float32)
-            bias = np.asarray(layer["bias"], np.float32)
+            # C order whatever the source (a view read back from a file is transposed):
+            # the product's BLAS kernel, and so its rounding, depends on the layout
+            weight = np.ascontiguousarray(layer["weight"], np.float32)
+            bias = np.ascontiguousarray(layer["bias"], np.float32)
             if weight.shape != shape or bias.shape != shape[:1]:
                 raise RLConfigError(
                     f"policy parameters: {module} has weight {list(weight.shape)} and bias"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,15 @@ from amaze.signals import signals_deferred
 from tests.stops import stop_inside
 
 ARCHITECTURE = {"type": "mlp", "hidden": [3]}
+
+
+@pytest.fixture(autouse=True)
+def _python_ctrl_c() -> Iterator[None]:
+    """Python's own Ctrl-C handler during each test, whatever the suite was started with
+    (a shell starts a background job with SIGINT ignored, and Python then keeps it so)."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
 
 
 def test_signals_deferred_delivers_ctrl_c_after_the_block() -> None:

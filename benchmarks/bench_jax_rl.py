@@ -170,6 +170,14 @@ def main() -> None:
     network = args.network if args.network is not None or not continuous else FAST_NETWORK
     if network is not None and not isinstance(network, dict):
         parser.error(f"--network {network!r}: a JSON object, e.g. '{{\"hidden\": [16]}}'")
+    if network is not None:
+        from rl_baselines import RLConfigError
+        from rl_baselines.jax.spec import network_spec
+
+        try:
+            network_spec(args.robot, network)
+        except RLConfigError as error:
+            parser.error(f"--network: {error}")
     _one_core(args.cpu)
     rows = [
         jax_rates("ppo", args.ppo_steps, args.repeats, args.robot, network),

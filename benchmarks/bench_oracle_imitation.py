@@ -46,7 +46,7 @@ from amaze.evaluation.suite import PAPER_TRAINING_MAZE, paper_suite, standard_su
 from amaze.runs.folder import write_rows
 from evolution.agent_file import save_network_agent
 from evolution.config import EvolutionConfigError
-from evolution.imitation import ImitationConfig, imitate
+from evolution.imitation import KEEP, ImitationConfig, imitate
 from evolution.networks import NetworkSpec
 from evolution.population import PopulationEvaluator
 
@@ -54,9 +54,16 @@ from evolution.population import PopulationEvaluator
 VALIDATION = 64
 
 
-def score(spec: NetworkSpec, params: np.ndarray, mazes: list[str]) -> tuple[float, float, float]:
-    """Success, path progress and mean R̄ of the network ``params`` on ``mazes``."""
-    evaluator = PopulationEvaluator(mazes, spec.robot, fitness="path_progress")
+def judge(spec: NetworkSpec, mazes: list[str]) -> PopulationEvaluator:
+    """An evaluator of ``spec``'s networks on ``mazes`` (compiled once), path progress its
+    fitness."""
+    return PopulationEvaluator(mazes, spec.robot, fitness="path_progress")
+
+
+def score(
+    spec: NetworkSpec, params: np.ndarray, evaluator: PopulationEvaluator
+) -> tuple[float, float, float]:
+    """Success, path progress and mean R̄ of the network ``params`` on ``evaluator``'s mazes."""
     result = evaluator.evaluate(spec.population(params[None, :]))
     return (
         float(result.success_rate[0]), float(result.fitness[0]),
@@ -84,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         help="the learning rate's factor per iteration (default 1: constant)",
     )  # fmt: skip
     parser.add_argument(
-        "--keep", choices=("last", "best"), default="last",
+        "--keep", choices=KEEP, default="last",
         help="hand over the last iteration's network or the best on validation mazes",
     )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the taught network as an agent file")
@@ -133,9 +140,10 @@ def main(argv: list[str] | None = None) -> int:
         "iterations": args.iterations,
     }  # fmt: skip
     family_scores: list[tuple[float, float]] = []
+    family_judge = judge(spec, family)
 
     def report(record: dict[str, float], params: np.ndarray) -> None:
-        success, progress, _ = score(spec, params, family)
+        success, progress, _ = score(spec, params, family_judge)
         family_scores.append((success, progress))
         print(f"iteration {record['iteration']:2.0f}  beta {record['beta']:.3f}"
               f"  samples {record['samples']:>9.0f}  loss {record['loss']:.4f}"
@@ -159,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         ("paper suite", paper_suite(), "suite"), ("standard suite", standard_suite(), "standard"),
     ):  # fmt: skip
         mazes_played = suite.maze_strings()
-        success, progress, reward = score(spec, params, mazes_played)
+        success, progress, reward = score(spec, params, judge(spec, mazes_played))
         print(f"{name} ({len(mazes_played)} episodes): success {success:.3f}"
               f"  path progress {progress:.3f}  mean R̄ {reward:+.3f}")  # fmt: skip
         row.update({

@@ -54,7 +54,14 @@ from .convolution import FILTER_SIDE
 from .networks import NetworkSpec
 from .population import PopulationEvaluator
 
-__all__ = ["ImitationConfig", "ImitationResult", "imitate", "network_inputs", "torch_network"]
+__all__ = [
+    "KEEP",
+    "ImitationConfig",
+    "ImitationResult",
+    "imitate",
+    "network_inputs",
+    "torch_network",
+]
 
 #: The continuous teacher's gain and damping (see the module docstring).
 TEACHER_GAIN = 2.0

@@ -2,7 +2,7 @@
 
     python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16 [16 ...]] [--pool 5]
         [--pooling mean] [--filters F --stride S] [--iterations 10] [--mazes 64] [--seed 0]
-        [--learning-rate-decay 1] [--keep last|best] [--out FILE.npz] [--csv FILE]
+        [--learning-rate-decay 1] [--keep last|best] [--guide AGENT] [--out FILE.npz] [--csv FILE]
 
 :func:`evolution.imitation.imitate` teaches a network of evolution's kind (the
 pooled image, the weights shared by the four directions, the
@@ -28,8 +28,18 @@ curriculum, budget); one that cannot is too small or sees too little. And a
 trainer with a privileged teacher: the teacher knows each maze's solution
 while teaching, the agent ``--out`` writes sees only its own inputs; its
 results are reported apart from those of RL and evolution, which learn from
-rewards alone (docs/robots.md). ``--csv FILE`` writes the run's figures as one
-row (the network, the kept iteration's, the suites').
+rewards alone (docs/robots.md).
+
+``--guide AGENT`` (continuous robots) teaches instead a
+:class:`~amaze.evaluation.controllers.GuidedController`'s actions: the robot
+steered, by the oracle's law, where the hybrid agent ``AGENT`` (an agent file
+of the hybrid robot with the same vision, ``H7`` for ``CC7``, e.g. one evolved
+from rewards alone) chooses to go from the image of its cell. That teacher
+knows nothing of the way to the goal: a continuous network taught by it
+learns continuous control from an agent that learnt the mazes from rewards,
+and goes no further than its guide (printed: the teacher's own success on
+the standard suite). ``--csv FILE`` writes the run's figures as one row (the
+network, the teacher, the kept iteration's, the suites').
 """
 
 from __future__ import annotations
@@ -41,12 +51,17 @@ from pathlib import Path
 
 import numpy as np
 
+from amaze.agents.engine import BatchEngine
+from amaze.agents.robot import as_robot
 from amaze.curriculum.validation import unseen_mazes, validation_mazes
+from amaze.errors import AmazeError
+from amaze.evaluation.controllers import GuidedController
+from amaze.evaluation.policy import run_episodes
 from amaze.evaluation.suite import PAPER_TRAINING_MAZE, paper_suite, standard_suite
 from amaze.runs.folder import write_rows
-from evolution.agent_file import save_network_agent
+from evolution.agent_file import load_agent, save_network_agent
 from evolution.config import EvolutionConfigError
-from evolution.imitation import KEEP, ImitationConfig, imitate
+from evolution.imitation import KEEP, TEACHER_DAMPING, TEACHER_GAIN, ImitationConfig, imitate
 from evolution.networks import NetworkSpec
 from evolution.population import PopulationEvaluator
 
@@ -58,6 +73,27 @@ def judge(spec: NetworkSpec, mazes: list[str]) -> PopulationEvaluator:
     """An evaluator of ``spec``'s networks on ``mazes`` (compiled once), path progress its
     fitness."""
     return PopulationEvaluator(mazes, spec.robot, fitness="path_progress")
+
+
+def guided_teacher(spec: NetworkSpec, path: Path) -> GuidedController:
+    """The continuous ``spec`` robot steered where the hybrid agent in ``path`` goes."""
+    if spec.robot_info.kind != "continuous":
+        raise EvolutionConfigError(f"--guide steers continuous robots (CC), not {spec.robot}")
+    guide = load_agent(path)
+    teacher = GuidedController(spec.robot, guide, gain=TEACHER_GAIN, damping=TEACHER_DAMPING)
+    if as_robot(getattr(guide, "robot", "")) != teacher.guide_robot:
+        raise EvolutionConfigError(
+            f"--guide {path}: a {guide.robot} agent; {spec.robot} needs a guide of robot"
+            f" {teacher.guide_robot}"
+        )
+    return teacher
+
+
+def teacher_success(spec: NetworkSpec, teacher: GuidedController) -> float:
+    """The teacher's success rate on the standard suite (one episode per maze)."""
+    mazes = standard_suite().maze_strings()
+    results = run_episodes(BatchEngine(mazes, spec.robot, len(mazes)), teacher)
+    return float(np.mean(results.success))
 
 
 def score(
@@ -94,6 +130,10 @@ def main(argv: list[str] | None = None) -> int:
         "--keep", choices=KEEP, default="last",
         help="hand over the last iteration's network or the best on validation mazes",
     )  # fmt: skip
+    parser.add_argument(
+        "--guide", type=Path, metavar="AGENT",
+        help="teach a continuous robot steered where this hybrid agent goes, not the oracle",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the taught network as an agent file")
     parser.add_argument("--csv", type=Path, metavar="FILE", help="write the figures to FILE")
     args = parser.parse_args(argv)
@@ -115,7 +155,8 @@ def main(argv: list[str] | None = None) -> int:
             learning_rate_decay=args.learning_rate_decay, keep=args.keep,
         )  # fmt: skip
         mazes = validation_mazes(PAPER_TRAINING_MAZE, args.mazes, 10_000 + args.seed)
-    except (EvolutionConfigError, ValueError) as error:
+        teacher = None if args.guide is None else guided_teacher(spec, args.guide)
+    except (AmazeError, EvolutionConfigError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     family = unseen_mazes(PAPER_TRAINING_MAZE, args.seed)
@@ -131,14 +172,21 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{spec.robot}, hidden {list(spec.hidden)}, {inputs}, {spec.n_params} parameters;"
           f" taught on {len(mazes)} family mazes, validated on {len(validation)} others,"
           f" scored on {len(family)} others; hands over the {args.keep} network")  # fmt: skip
+    teacher_name = "oracle" if args.guide is None else f"guide {args.guide.name}"
+    if teacher is not None:
+        success = teacher_success(spec, teacher)
+        print(f"teacher: {args.robot} steered where {args.guide} goes;"
+              f" its success on the standard suite {success:.3f}")  # fmt: skip
     start = time.perf_counter()
     row: dict[str, object] = {
         "robot": spec.robot, "hidden": " ".join(map(str, spec.hidden)), "pool": spec.pool,
         "pooling": spec.pooling, "filters": spec.filters, "stride": spec.stride,
         "parameters": spec.n_params, "seed": args.seed, "mazes": len(mazes),
         "learning_rate_decay": args.learning_rate_decay, "keep": args.keep,
-        "iterations": args.iterations,
+        "iterations": args.iterations, "teacher": teacher_name,
     }  # fmt: skip
+    if teacher is not None:
+        row.update(teacher_standard_success=success)
     family_scores: list[tuple[float, float]] = []
     family_judge = judge(spec, family)
 
@@ -152,7 +200,9 @@ def main(argv: list[str] | None = None) -> int:
               f"  family success {success:.3f}  progress {progress:.3f}"
               f"  ({time.perf_counter() - start:.0f} s)", flush=True)  # fmt: skip
 
-    result = imitate(spec, mazes, config, validation=validation, on_iteration=report)
+    result = imitate(
+        spec, mazes, config, validation=validation, teacher=teacher, on_iteration=report
+    )
     kept = result.history[result.kept_iteration]
     row.update(
         kept_iteration=result.kept_iteration, samples=int(kept["samples"]), loss=kept["loss"],
@@ -179,11 +229,13 @@ def main(argv: list[str] | None = None) -> int:
         write_rows(args.csv, [row])
         print(f"figures written to {args.csv}")
     if args.out is not None:
+        algorithm = "oracle imitation (DAgger)" if teacher is None else "guided imitation (DAgger)"
         path = save_network_agent(
-            args.out, spec, params, algorithm="oracle imitation (DAgger)",
+            args.out, spec, params, algorithm=algorithm, teacher=teacher_name,
             seed=args.seed, mazes=mazes,
         )  # fmt: skip
-        print(f"taught network written to {path} (its teacher knew each maze's solution)")
+        knew = "knew each maze's solution" if teacher is None else "followed the guide"
+        print(f"taught network written to {path} (its teacher {knew})")
     return 0
 
 

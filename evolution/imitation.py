@@ -24,12 +24,17 @@ The parameters come back in the spec's own layout, so the taught network is
 an ordinary agent (:func:`evolution.agent_file.save_network_agent`) scored
 by the usual evaluators.
 
-Two uses. A capacity check: a network that cannot be taught to drive cannot
-be evolved to. And a trainer with a privileged teacher: the teacher knows
+Three uses. A capacity check: a network that cannot be taught to drive cannot
+be evolved to. A trainer with a privileged teacher: the teacher knows
 each maze's solution while teaching, the taught network sees only its own
 inputs, so its results are reported apart from those of RL and evolution,
-which learn from rewards alone. ``benchmarks/bench_oracle_imitation.py``
-runs it and scores the network on the suites. The teacher of a continuous
+which learn from rewards alone. And, given another ``teacher``, the second
+half of a trainer from rewards alone: a
+:class:`~amaze.evaluation.controllers.GuidedController` steers a continuous
+robot where a hybrid agent (evolved or trained by RL on rewards) goes, and the
+network learns that agent's decisions with continuous control, knowing no
+maze's solution. ``benchmarks/bench_oracle_imitation.py`` runs it
+(``--guide AGENT``) and scores the network on the suites. The teacher of a continuous
 robot steers without braking by default (``damping = 0``: the image shows no
 velocity, and this law solves the suite, see :class:`OracleController`).
 
@@ -46,6 +51,7 @@ import numpy as np
 
 from amaze.agents.engine import BatchEngine
 from amaze.evaluation.controllers import OracleController
+from amaze.evaluation.policy import as_policy_observations
 from amaze.maze import Maze, MazeSpec
 from amaze.validation import check_integer, check_number
 
@@ -236,9 +242,16 @@ def imitate(
     config: ImitationConfig | None = None,
     *,
     validation: Sequence[Maze | MazeSpec | str] = (),
+    teacher: Any = None,
     on_iteration: Callable[[dict[str, float], np.ndarray], None] | None = None,
 ) -> ImitationResult:
     """Teach ``spec``'s network the oracle's actions on ``mazes`` by DAgger.
+
+    ``teacher``: whose actions instead of the oracle's, a controller of the
+    spec's robot bound to the engine (``bind(engine)``) and called on its
+    observations, e.g. a :class:`~amaze.evaluation.controllers.GuidedController`
+    that steers a continuous robot where a hybrid agent trained from rewards
+    would go (no privileged knowledge of the maze).
 
     ``on_iteration(record, params)`` hears of each iteration (``iteration``,
     ``beta``, ``samples``, ``loss``: the last batch's, ``learning_rate``, and
@@ -260,11 +273,11 @@ def imitate(
     rng = np.random.default_rng(config.seed)
     engine = BatchEngine(list(mazes), spec.robot, config.agents)
     robot = spec.robot_info
-    if robot.discrete_outputs:
-        oracle = OracleController(robot)
-    else:
-        oracle = OracleController(robot, gain=TEACHER_GAIN, damping=TEACHER_DAMPING)
-    oracle.bind(engine)
+    if teacher is None and robot.discrete_outputs:
+        teacher = OracleController(robot)
+    elif teacher is None:
+        teacher = OracleController(robot, gain=TEACHER_GAIN, damping=TEACHER_DAMPING)
+    teacher.bind(engine)
     network = torch_network(spec)
     optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
     label_shape = (2,) if not robot.discrete_outputs else ()
@@ -282,15 +295,15 @@ def imitate(
         new_inputs, new_labels = [], []
         for _ in range(config.steps):
             encoded = network_inputs(spec, observations)
-            teacher = oracle(observations)
+            taught_actions = np.asarray(teacher(as_policy_observations(observations, robot)))
             with torch.no_grad():
                 output = network(torch.as_tensor(encoded)).numpy()
             student = output.argmax(axis=1) if robot.discrete_outputs else output
             taught = rng.random(engine.n_agents) < beta
             mask = taught if robot.discrete_outputs else taught[:, None]
-            actions = np.where(mask, teacher, student)
+            actions = np.where(mask, taught_actions, student)
             new_inputs.append(encoded)
-            new_labels.append(teacher.astype(label_type))
+            new_labels.append(taught_actions.astype(label_type))
             observations = engine.step(actions).observations
         inputs = np.concatenate([inputs, *new_inputs])[-config.max_samples :]
         labels = np.concatenate([labels, *new_labels])[-config.max_samples :]

@@ -68,6 +68,7 @@ from amaze.agents.robot import (
 )
 from amaze.agents.tables import MazeTables, compile_mazes
 from amaze.errors import ActionError, EpisodeEndedError, OptionError
+from amaze.maze.directions import OFFSETS
 from amaze.maze.maze import Maze, as_maze
 from amaze.maze.spec import MazeSpec
 from amaze.validation import check_integer
@@ -1143,6 +1144,23 @@ class BatchEngine:
         local = self._ist[:, _CELL].astype(np.int64) - self._mint[maze, _OFF]
         height = self._mint[maze, _H]
         return np.stack([local // height, local % height], axis=1)
+
+    @property
+    def arrival_sides(self) -> np.ndarray:
+        """int64 (n,): the side (0..3, E N W S) of every robot's cell it came in by, -1 if none.
+
+        The side an image robot's origin marker is drawn on: discrete and
+        hybrid robots keep it through a step into a wall; a continuous robot's
+        is the side of the cell it was in before (none in its start cell).
+        """
+        if self.kind != "continuous":
+            return self._ist[:, _ARR].astype(np.int64) - 1
+        di = self._ist[:, _PI].astype(np.int64) - self._ist[:, _CI]
+        dj = self._ist[:, _PJ].astype(np.int64) - self._ist[:, _CJ]
+        sides = np.full(self.n_agents, -1, dtype=np.int64)
+        for side, (oi, oj) in enumerate(OFFSETS):
+            sides[(di == oi) & (dj == oj)] = side
+        return sides
 
     @property
     def positions(self) -> np.ndarray:

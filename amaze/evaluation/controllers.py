@@ -31,8 +31,9 @@ import numpy as np
 
 from amaze.agents.engine import BatchEngine
 from amaze.agents.rewards import DEFAULT_DEADLINE_FACTOR
-from amaze.agents.robot import Robot, as_robot, robot_name
+from amaze.agents.robot import IOType, Robot, as_robot, robot_name
 from amaze.agents.simulation import Simulation
+from amaze.agents.tables import WHITE, marker_pixel
 from amaze.errors import AmazeError
 from amaze.maze.directions import OFFSETS, OFFSETS_ARRAY
 from amaze.maze.maze import Maze, as_maze
@@ -42,12 +43,14 @@ from amaze.validation import check_integer, check_number
 __all__ = [
     "CONTROLLERS",
     "ControllerError",
+    "GuidedController",
     "OracleController",
     "RandomController",
     "TabularController",
     "goal_directions",
     "make_controller",
     "run_folder_agent",
+    "steer",
     "train_tabular",
 ]
 
@@ -167,12 +170,8 @@ class OracleController:
         damping: float = ORACLE_DAMPING,
     ) -> None:
         self.robot = as_robot(robot)
-        if not (math.isfinite(gain) and gain > 0):
-            raise ControllerError(f"oracle gain {gain!r} must be a positive number")
-        if not (math.isfinite(damping) and damping >= 0):
-            raise ControllerError(f"oracle damping {damping!r} must be a non-negative number")
-        self.gain = float(gain)
-        self.damping = float(damping)
+        self.gain = _check_gain(gain)
+        self.damping = _check_damping(damping)
         self._engine: BatchEngine | None = None
         self._directions = np.empty(0, dtype=np.int64)
         self._offsets = np.empty(0, dtype=np.int64)
@@ -197,26 +196,117 @@ class OracleController:
         return self._directions[flat]
 
     def __call__(self, observations: np.ndarray) -> np.ndarray:
-        engine = self._engine
-        if engine is None:
-            raise ControllerError(
-                "OracleController is not bound to an engine: call bind(engine) first"
-                " (run_episodes and record_episode do)"
-            )
-        n = _batch_size(observations)
-        if n != engine.n_agents:
-            raise ControllerError(
-                f"oracle got {n} observations for an engine of {engine.n_agents} agents"
-            )
+        engine = _bound_engine(self._engine, observations, "OracleController", "oracle")
         cells = engine.cells
         directions = self._next_direction(engine.assignment, cells)
         if self.robot.discrete_outputs:
             return np.where(directions >= 0, directions, 0).astype(np.int64)
-        moving = directions >= 0
-        target = cells + 0.5 + np.where(moving[:, None], OFFSETS_ARRAY[directions], 0)
-        acceleration = self.gain * (target - engine.positions) - self.damping * engine.velocities
-        norm = np.linalg.norm(acceleration, axis=1, keepdims=True)
-        return acceleration / np.maximum(norm, 1.0)
+        return steer(engine, cells, directions, self.gain, self.damping)
+
+
+def steer(
+    engine: BatchEngine, cells: np.ndarray, directions: np.ndarray, gain: float, damping: float
+) -> np.ndarray:
+    """float64 (n, 2): accelerations towards the centre of the next cell in ``directions``.
+
+    The continuous oracle's PD law, ``a = gain * (target - x) - damping * v``
+    clipped to the unit disc, with ``target`` the centre of the neighbour of
+    each robot's cell in its direction (its own cell's centre where the
+    direction is -1).
+    """
+    moving = directions >= 0
+    target = cells + 0.5 + np.where(moving[:, None], OFFSETS_ARRAY[directions], 0)
+    acceleration = gain * (target - engine.positions) - damping * engine.velocities
+    norm = np.linalg.norm(acceleration, axis=1, keepdims=True)
+    return acceleration / np.maximum(norm, 1.0)
+
+
+class GuidedController:
+    """A continuous robot steered where a hybrid agent would go: no maze solution.
+
+    The ``guide`` is a policy of the hybrid robot with the same vision (an
+    image of its cell in, a direction out; ``H7`` for ``CC7``), for instance an
+    agent trained by evolution or RL from rewards alone. On each call it is
+    shown, for every continuous robot, the image a hybrid robot would see in
+    that cell (the cell's tile with the origin marker on the side the robot
+    came in by, :attr:`BatchEngine.arrival_sides`), and the robot is steered by
+    the oracle's PD law (:func:`steer`) towards the centre of the neighbour the
+    guide chooses. So the continuous robot follows the guide's decisions from
+    cell to cell, and goes wherever it would go: into a wall, round a loop, or
+    to the goal. It reads the engine's state (the robot's cell, position and
+    velocity), as the oracle does, but knows nothing of the way to the goal.
+    :func:`evolution.imitation.imitate` takes it as a teacher, so that a
+    network learns continuous control from an agent that learnt the maze from
+    rewards.
+
+    The guide is called once per step on the whole batch (its ``reset`` hook,
+    if any, when the controller is bound); it is shown one image per robot and
+    nothing else, as a memoryless hybrid agent would see it.
+    """
+
+    def __init__(
+        self,
+        robot: Robot | str,
+        guide: Any,
+        *,
+        gain: float = ORACLE_GAIN,
+        damping: float = ORACLE_DAMPING,
+    ) -> None:
+        self.robot = as_robot(robot)
+        if self.robot.kind != "continuous":
+            raise ControllerError(
+                f"a guided controller drives continuous robots (CC), not {robot_name(self.robot)}"
+            )
+        if not callable(guide):
+            raise ControllerError(
+                f"the guide must be a policy (callable), got {type(guide).__name__}"
+            )
+        #: The hybrid robot the guide drives: the same vision, discrete outputs.
+        self.guide_robot = Robot(IOType.CONTINUOUS, IOType.DISCRETE, self.robot.vision)
+        self.guide = guide
+        self.gain = _check_gain(gain)
+        self.damping = _check_damping(damping)
+        self._engine: BatchEngine | None = None
+
+    def bind(self, engine: BatchEngine) -> None:
+        """Attach to ``engine``, whose robot must be this controller's."""
+        if engine.robot != self.robot:
+            raise ControllerError(
+                f"guided controller built for {robot_name(self.robot)} cannot drive the"
+                f" engine's {robot_name(engine.robot)}"
+            )
+        reset = getattr(self.guide, "reset", None)
+        if callable(reset):
+            reset(engine.n_agents)
+        self._engine = engine
+
+    def guide_observations(self) -> np.ndarray:
+        """uint8 (n, 1, v, v): what a hybrid robot would see in every robot's cell."""
+        engine = _bound_engine(self._engine, None, "GuidedController", "guided controller")
+        tables = engine.tables
+        cells = engine.cells
+        maze = engine.assignment
+        flat = tables.cell_offset[maze] + cells[:, 0] * tables.height[maze] + cells[:, 1]
+        images = tables.tiles[flat]  # fancy indexing: a copy
+        sides = engine.arrival_sides
+        v = int(self.robot.vision)
+        for side in range(len(OFFSETS)):
+            row, column = marker_pixel(side, v)
+            images[sides == side, row, column] = WHITE
+        return images[:, None]
+
+    def __call__(self, observations: np.ndarray) -> np.ndarray:
+        engine = _bound_engine(self._engine, observations, "GuidedController", "guided controller")
+        n = engine.n_agents
+        directions = np.asarray(self.guide(self.guide_observations())).reshape(-1)
+        if directions.shape != (n,) or not np.issubdtype(directions.dtype, np.integer):
+            raise ControllerError(
+                f"the guide must return {n} integer directions, got {directions.dtype}"
+                f" of shape {directions.shape}"
+            )
+        if directions.min(initial=0) < 0 or directions.max(initial=0) >= N_ACTIONS:
+            raise ControllerError("the guide returned a direction outside 0..3 (E, N, W, S)")
+        return steer(engine, engine.cells, directions.astype(np.int64), self.gain, self.damping)
 
 
 # -----------------------------------------------------------------------------
@@ -596,11 +686,40 @@ def _check_agent_robot(
 # Checks
 
 
+def _bound_engine(
+    engine: BatchEngine | None, observations: np.ndarray | None, kind: str, name: str
+) -> BatchEngine:
+    """The engine a controller is bound to, refused if none or if ``observations`` (when
+    given) are not one per agent of it."""
+    if engine is None:
+        raise ControllerError(
+            f"{kind} is not bound to an engine: call bind(engine) first"
+            " (run_episodes and record_episode do)"
+        )
+    if observations is not None:
+        n = _batch_size(observations)
+        if n != engine.n_agents:
+            raise ControllerError(
+                f"{name} got {n} observations for an engine of {engine.n_agents} agents"
+            )
+    return engine
+
+
 def _batch_size(observations: np.ndarray) -> int:
     shape = np.shape(observations)
     if len(shape) < 2:
         raise ControllerError(f"expected a batch of observations, got shape {shape}")
     return int(shape[0])
+
+
+def _check_gain(gain: Any) -> float:
+    return check_number(
+        "steering gain", gain, minimum=0, strict_minimum=True, error=ControllerError
+    )
+
+
+def _check_damping(damping: Any) -> float:
+    return check_number("steering damping", damping, minimum=0, error=ControllerError)
 
 
 def _check_seed(seed: Any) -> int:

@@ -108,6 +108,31 @@ def test_dagger_teaches_a_discrete_robot_to_follow_unseen_corridors() -> None:
     np.testing.assert_array_equal(again.params, result.params)  # same seed, same network
 
 
+def test_another_teacher_is_bound_to_the_engine_and_imitated() -> None:
+    """``teacher`` replaces the oracle: bound to the engine, its actions are the labels."""
+
+    class North:
+        def __init__(self) -> None:
+            self.engines: list[BatchEngine] = []
+
+        def bind(self, engine: BatchEngine) -> None:
+            self.engines.append(engine)
+
+        def __call__(self, observations: np.ndarray) -> np.ndarray:
+            return np.full(len(observations), 1, dtype=np.int64)
+
+    spec = NetworkSpec(robot="DD", hidden=(4,))
+    config = ImitationConfig(iterations=2, agents=16, steps=20, updates=200, batch=64, seed=2)
+    teacher = North()
+    result = imitate(spec, ["M1_6x6_U", "M2_7x5_U"], config, teacher=teacher)
+    assert len(teacher.engines) == 1 and teacher.engines[0].n_agents == 16
+    observations = _observations(spec)
+    actions = spec.population(result.params[None, :])(observations)
+    assert (actions == 1).all()  # north everywhere, as taught; the oracle goes its own way
+    oracle_taught = imitate(spec, ["M1_6x6_U", "M2_7x5_U"], config)
+    assert (spec.population(oracle_taught.params[None, :])(observations) != 1).any()
+
+
 def test_keep_best_hands_over_the_best_network_on_the_validation_mazes(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{spec.robot}, hidden {list(spec.hidden)}, {inputs}, {spec.n_params} parameters;"
           f" taught on {len(mazes)} family mazes, validated on {len(validation)} others,"
           f" scored on {len(family)} others; hands over the {args.keep} network")  # fmt: skip
-    teacher_name = "oracle" if args.guide is None else f"guide {args.guide.name}"
+    teacher_name = "oracle" if args.guide is None else f"guide {args.guide}"
     if teacher is not None:
         success = teacher_success(spec, teacher)
         print(f"teacher: {args.robot} steered where {args.guide} goes;"

@@ -273,6 +273,11 @@ def imitate(
     rng = np.random.default_rng(config.seed)
     engine = BatchEngine(list(mazes), spec.robot, config.agents)
     robot = spec.robot_info
+    if teacher is not None and not (callable(teacher) and callable(getattr(teacher, "bind", None))):
+        raise EvolutionConfigError(
+            "the teacher must be a controller with a bind(engine) hook,"
+            f" got {type(teacher).__name__}"
+        )
     if teacher is None and robot.discrete_outputs:
         teacher = OracleController(robot)
     elif teacher is None:

@@ -129,6 +129,8 @@ def test_another_teacher_is_bound_to_the_engine_and_imitated() -> None:
     observations = _observations(spec)
     actions = spec.population(result.params[None, :])(observations)
     assert (actions == 1).all()  # north everywhere, as taught; the oracle goes its own way
+    with pytest.raises(EvolutionConfigError, match="bind"):
+        imitate(spec, ["M1_6x6_U"], config, teacher=lambda observations: observations)
     oracle_taught = imitate(spec, ["M1_6x6_U", "M2_7x5_U"], config)
     assert (spec.population(oracle_taught.params[None, :])(observations) != 1).any()
 

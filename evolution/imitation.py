@@ -7,7 +7,8 @@ module tells the two apart: DAgger (Ross, Gordon and Bagnell, 2011) fits the
 network, by gradient descent in torch, to the actions of
 :class:`~amaze.evaluation.controllers.OracleController` (which knows the
 maze's solution and the robot's position; the network sees only its
-observation), on the states the network itself reaches. Iteration ``i``
+observation), or of another teacher (below), on the states the network itself
+reaches. Iteration ``i``
 drives the robots with the oracle's action with probability ``0.5 ** i`` and
 the network's otherwise, labels every observation with the oracle's action,
 and fits the network on all observations so far (the newest
@@ -245,7 +246,7 @@ def imitate(
     teacher: Any = None,
     on_iteration: Callable[[dict[str, float], np.ndarray], None] | None = None,
 ) -> ImitationResult:
-    """Teach ``spec``'s network the oracle's actions on ``mazes`` by DAgger.
+    """Teach ``spec``'s network the oracle's (or ``teacher``'s) actions on ``mazes`` by DAgger.
 
     ``teacher``: whose actions instead of the oracle's, a controller of the
     spec's robot bound to the engine (``bind(engine)``) and called on its
@@ -265,6 +266,11 @@ def imitate(
     config = config or ImitationConfig()
     if config.keep == "best" and not validation:
         raise EvolutionConfigError('keep "best" needs validation mazes to choose on')
+    if teacher is not None and not (callable(teacher) and callable(getattr(teacher, "bind", None))):
+        raise EvolutionConfigError(
+            "the teacher must be a controller with a bind(engine) hook,"
+            f" got {type(teacher).__name__}"
+        )
     judge = None
     if validation:
         judge = PopulationEvaluator(list(validation), spec.robot, fitness="path_progress")
@@ -273,11 +279,6 @@ def imitate(
     rng = np.random.default_rng(config.seed)
     engine = BatchEngine(list(mazes), spec.robot, config.agents)
     robot = spec.robot_info
-    if teacher is not None and not (callable(teacher) and callable(getattr(teacher, "bind", None))):
-        raise EvolutionConfigError(
-            "the teacher must be a controller with a bind(engine) hook,"
-            f" got {type(teacher).__name__}"
-        )
     if teacher is None and robot.discrete_outputs:
         teacher = OracleController(robot)
     elif teacher is None:

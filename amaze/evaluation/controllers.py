@@ -280,11 +280,12 @@ class GuidedController:
             reset(engine.n_agents)
         self._engine = engine
 
-    def guide_observations(self) -> np.ndarray:
-        """uint8 (n, 1, v, v): what a hybrid robot would see in every robot's cell."""
+    def guide_observations(self, cells: np.ndarray | None = None) -> np.ndarray:
+        """uint8 (n, 1, v, v): what a hybrid robot would see in every robot's cell
+        (``cells``: the engine's, if the caller has them already)."""
         engine = _bound_engine(self._engine, None, "GuidedController", "guided controller")
         tables = engine.tables
-        cells = engine.cells
+        cells = engine.cells if cells is None else cells
         maze = engine.assignment
         flat = tables.cell_offset[maze] + cells[:, 0] * tables.height[maze] + cells[:, 1]
         images = tables.tiles[flat]  # fancy indexing: a copy
@@ -298,7 +299,8 @@ class GuidedController:
     def __call__(self, observations: np.ndarray) -> np.ndarray:
         engine = _bound_engine(self._engine, observations, "GuidedController", "guided controller")
         n = engine.n_agents
-        directions = np.asarray(self.guide(self.guide_observations())).reshape(-1)
+        cells = engine.cells
+        directions = np.asarray(self.guide(self.guide_observations(cells))).reshape(-1)
         if directions.shape != (n,) or not np.issubdtype(directions.dtype, np.integer):
             raise ControllerError(
                 f"the guide must return {n} integer directions, got {directions.dtype}"
@@ -306,7 +308,7 @@ class GuidedController:
             )
         if directions.min(initial=0) < 0 or directions.max(initial=0) >= N_ACTIONS:
             raise ControllerError("the guide returned a direction outside 0..3 (E, N, W, S)")
-        return steer(engine, engine.cells, directions.astype(np.int64), self.gain, self.damping)
+        return steer(engine, cells, directions.astype(np.int64), self.gain, self.damping)
 
 
 # -----------------------------------------------------------------------------

@@ -8,12 +8,12 @@ network, by gradient descent in torch, to the actions of
 :class:`~amaze.evaluation.controllers.OracleController` (which knows the
 maze's solution and the robot's position; the network sees only its
 observation), or of another teacher (below), on the states the network itself
-reaches. Iteration ``i``
-drives the robots with the oracle's action with probability ``0.5 ** i`` and
-the network's otherwise, labels every observation with the oracle's action,
-and fits the network on all observations so far (the newest
-``max_samples``): continuous robots by the squared error of the
-accelerations, discrete ones by the cross-entropy of the direction scores.
+reaches. Iteration ``i`` drives the robots with the teacher's action (the
+oracle's by default) with probability ``0.5 ** i`` and the network's
+otherwise, labels every observation with the teacher's action, and fits the
+network on all observations so far (the newest ``max_samples``): continuous
+robots by the squared error of the accelerations, discrete ones by the
+cross-entropy of the direction scores.
 Iteration ``i``'s Adam steps take ``learning_rate * learning_rate_decay ** i``
 (a decay under 1 lets the late iterations, where the network drives itself,
 settle instead of moving as far as the first). Given validation mazes, each

@@ -2,7 +2,8 @@
 
     python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16 [16 ...]] [--pool 5]
         [--pooling mean] [--filters F --stride S] [--iterations 10] [--mazes 64] [--seed 0]
-        [--learning-rate-decay 1] [--keep last|best] [--guide AGENT] [--out FILE.npz] [--csv FILE]
+        [--learning-rate-decay 1] [--keep last|best] [--guide AGENT [--teacher-only]]
+        [--out FILE.npz] [--csv FILE]
 
 :func:`evolution.imitation.imitate` teaches a network of evolution's kind (the
 pooled image, the weights shared by the four directions, the
@@ -37,9 +38,12 @@ of the hybrid robot with the same vision, ``H7`` for ``CC7``, e.g. one evolved
 from rewards alone) chooses to go from the image of its cell. That teacher
 knows nothing of the way to the goal: a continuous network taught by it
 learns continuous control from an agent that learnt the mazes from rewards,
-and goes no further than its guide (printed: the teacher's own success on
-the standard suite). ``--csv FILE`` writes the run's figures as one row (the
-network, the teacher, the kept iteration's, the suites').
+and goes no further than its guide. Printed first: the teacher's own success,
+driving alone, on the validation mazes (seconds to measure; a guide whose
+teacher fails there cannot teach there, see docs/robots.md) and on the
+standard suite; ``--teacher-only`` prints them and stops. ``--csv FILE``
+writes the run's figures as one row (the network, the teacher, the kept
+iteration's, the suites').
 """
 
 from __future__ import annotations
@@ -89,9 +93,8 @@ def guided_teacher(spec: NetworkSpec, path: Path) -> GuidedController:
     return teacher
 
 
-def teacher_success(spec: NetworkSpec, teacher: GuidedController) -> float:
-    """The teacher's success rate on the standard suite (one episode per maze)."""
-    mazes = standard_suite().maze_strings()
+def teacher_success(spec: NetworkSpec, teacher: GuidedController, mazes: list[str]) -> float:
+    """The teacher's success rate on ``mazes`` (one episode per maze), driving alone."""
     results = run_episodes(BatchEngine(mazes, spec.robot, len(mazes)), teacher)
     return float(np.mean(results.success))
 
@@ -134,6 +137,10 @@ def main(argv: list[str] | None = None) -> int:
         "--guide", type=Path, metavar="AGENT",
         help="teach a continuous robot steered where this hybrid agent goes, not the oracle",
     )  # fmt: skip
+    parser.add_argument(
+        "--teacher-only", action="store_true",
+        help="with --guide: print the teacher's success and stop (seconds), teaching nothing",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the taught network as an agent file")
     parser.add_argument("--csv", type=Path, metavar="FILE", help="write the figures to FILE")
     args = parser.parse_args(argv)
@@ -141,6 +148,10 @@ def main(argv: list[str] | None = None) -> int:
         if path is not None and not path.parent.is_dir():
             print(f"error: {option} {path}: folder {path.parent} does not exist", file=sys.stderr)
             return 2
+    if args.teacher_only and (args.guide is None or args.out or args.csv):
+        print("error: --teacher-only checks a --guide's teacher and teaches nothing:"
+              " give --guide, and no --out or --csv", file=sys.stderr)  # fmt: skip
+        return 2
     if args.mazes < 1:
         print(f"error: --mazes {args.mazes}: teach on at least one maze", file=sys.stderr)
         return 2
@@ -174,9 +185,13 @@ def main(argv: list[str] | None = None) -> int:
           f" scored on {len(family)} others; hands over the {args.keep} network")  # fmt: skip
     teacher_name = "oracle" if args.guide is None else f"guide {args.guide}"
     if teacher is not None:
-        success = teacher_success(spec, teacher)
-        print(f"teacher: {args.robot} steered where {args.guide} goes;"
-              f" its success on the standard suite {success:.3f}")  # fmt: skip
+        taught_success = teacher_success(spec, teacher, validation)
+        success = teacher_success(spec, teacher, standard_suite().maze_strings())
+        print(f"teacher: {args.robot} steered where {args.guide} goes; its success on the"
+              f" validation mazes {taught_success:.3f},"
+              f" on the standard suite {success:.3f}")  # fmt: skip
+        if args.teacher_only:
+            return 0
     start = time.perf_counter()
     row: dict[str, object] = {
         "robot": spec.robot, "hidden": " ".join(map(str, spec.hidden)), "pool": spec.pool,
@@ -186,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         "iterations": args.iterations, "teacher": teacher_name,
     }  # fmt: skip
     if teacher is not None:
-        row.update(teacher_standard_success=success)
+        row.update(teacher_validation_success=taught_success, teacher_standard_success=success)
     family_scores: list[tuple[float, float]] = []
     family_judge = judge(spec, family)
 

@@ -185,10 +185,10 @@ def main(argv: list[str] | None = None) -> int:
           f" scored on {len(family)} others; hands over the {args.keep} network")  # fmt: skip
     teacher_name = "oracle" if args.guide is None else f"guide {args.guide}"
     if teacher is not None:
-        taught_success = teacher_success(spec, teacher, validation)
+        teacher_validation = teacher_success(spec, teacher, validation)
         success = teacher_success(spec, teacher, standard_suite().maze_strings())
         print(f"teacher: {args.robot} steered where {args.guide} goes; its success on the"
-              f" validation mazes {taught_success:.3f},"
+              f" validation mazes {teacher_validation:.3f},"
               f" on the standard suite {success:.3f}")  # fmt: skip
         if args.teacher_only:
             return 0
@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         "iterations": args.iterations, "teacher": teacher_name,
     }  # fmt: skip
     if teacher is not None:
-        row.update(teacher_validation_success=taught_success, teacher_standard_success=success)
+        row.update(teacher_validation_success=teacher_validation, teacher_standard_success=success)
     family_scores: list[tuple[float, float]] = []
     family_judge = judge(spec, family)
 

@@ -191,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
               f" validation mazes {teacher_validation:.3f},"
               f" on the standard suite {success:.3f}")  # fmt: skip
         if args.teacher_only:
+            print("--teacher-only: stopped before teaching; --iterations, --keep and"
+                  " --learning-rate-decay were not used")  # fmt: skip
             return 0
     start = time.perf_counter()
     row: dict[str, object] = {

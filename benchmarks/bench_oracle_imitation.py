@@ -2,7 +2,7 @@
 
     python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16 [16 ...]] [--pool 5]
         [--pooling mean] [--filters F --stride S] [--iterations 10] [--mazes 64] [--seed 0]
-        [--learning-rate-decay 1] [--keep last|best] [--guide AGENT [--teacher-only]]
+        [--learning-rate-decay 1] [--keep last|best] [--guide AGENT [--track] [--teacher-only]]
         [--out FILE.npz] [--csv FILE]
 
 :func:`evolution.imitation.imitate` teaches a network of evolution's kind (the
@@ -41,7 +41,11 @@ learns continuous control from an agent that learnt the mazes from rewards,
 and goes no further than its guide. Printed first: the teacher's own success,
 driving alone, on the validation mazes (seconds to measure; a guide whose
 teacher fails there cannot teach there, see docs/robots.md) and on the
-standard suite; ``--teacher-only`` prints them and stops. ``--csv FILE``
+standard suite; ``--teacher-only`` prints them and stops. ``--track`` keeps
+the guide on its own track (``GuidedController(track=True)``): a robot that
+strays from the guide's cell is steered back to it by the maze's open walls
+instead of the guide being asked again where it strayed, which turns a
+memoryless guide round (see docs/robots.md). ``--csv FILE``
 writes the run's figures as one row (the network, the teacher, the kept
 iteration's, the suites').
 """
@@ -79,12 +83,15 @@ def judge(spec: NetworkSpec, mazes: list[str]) -> PopulationEvaluator:
     return PopulationEvaluator(mazes, spec.robot, fitness="path_progress")
 
 
-def guided_teacher(spec: NetworkSpec, path: Path) -> GuidedController:
-    """The continuous ``spec`` robot steered where the hybrid agent in ``path`` goes."""
+def guided_teacher(spec: NetworkSpec, path: Path, track: bool = False) -> GuidedController:
+    """The continuous ``spec`` robot steered where the hybrid agent in ``path`` goes
+    (``track``: on the guide's own track, see :class:`GuidedController`)."""
     if spec.robot_info.kind != "continuous":
         raise EvolutionConfigError(f"--guide steers continuous robots (CC), not {spec.robot}")
     guide = load_agent(path)
-    teacher = GuidedController(spec.robot, guide, gain=TEACHER_GAIN, damping=TEACHER_DAMPING)
+    teacher = GuidedController(
+        spec.robot, guide, gain=TEACHER_GAIN, damping=TEACHER_DAMPING, track=track
+    )
     if as_robot(getattr(guide, "robot", "")) != teacher.guide_robot:
         raise EvolutionConfigError(
             f"--guide {path}: a {guide.robot} agent; {spec.robot} needs a guide of robot"
@@ -141,6 +148,10 @@ def main(argv: list[str] | None = None) -> int:
         "--teacher-only", action="store_true",
         help="with --guide: print the teacher's success and stop (seconds), teaching nothing",
     )  # fmt: skip
+    parser.add_argument(
+        "--track", action="store_true",
+        help="with --guide: keep the guide on its own track, bring strays back to it",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the taught network as an agent file")
     parser.add_argument("--csv", type=Path, metavar="FILE", help="write the figures to FILE")
     args = parser.parse_args(argv)
@@ -151,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.teacher_only and (args.guide is None or args.out or args.csv):
         print("error: --teacher-only checks a --guide's teacher and teaches nothing:"
               " give --guide, and no --out or --csv", file=sys.stderr)  # fmt: skip
+        return 2
+    if args.track and args.guide is None:
+        print("error: --track keeps a --guide on its track: give --guide", file=sys.stderr)
         return 2
     if args.mazes < 1:
         print(f"error: --mazes {args.mazes}: teach on at least one maze", file=sys.stderr)
@@ -166,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
             learning_rate_decay=args.learning_rate_decay, keep=args.keep,
         )  # fmt: skip
         mazes = validation_mazes(PAPER_TRAINING_MAZE, args.mazes, 10_000 + args.seed)
-        teacher = None if args.guide is None else guided_teacher(spec, args.guide)
+        teacher = None if args.guide is None else guided_teacher(spec, args.guide, args.track)
     except (AmazeError, EvolutionConfigError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -184,10 +198,13 @@ def main(argv: list[str] | None = None) -> int:
           f" taught on {len(mazes)} family mazes, validated on {len(validation)} others,"
           f" scored on {len(family)} others; hands over the {args.keep} network")  # fmt: skip
     teacher_name = "oracle" if args.guide is None else f"guide {args.guide}"
+    if args.track:
+        teacher_name += " on its track"
     if teacher is not None:
         teacher_validation = teacher_success(spec, teacher, validation)
         success = teacher_success(spec, teacher, standard_suite().maze_strings())
-        print(f"teacher: {args.robot} steered where {args.guide} goes; its success on the"
+        print(f"teacher: {args.robot} steered where {args.guide} goes"
+              f"{' on its own track' if args.track else ''}; its success on the"
               f" validation mazes {teacher_validation:.3f},"
               f" on the standard suite {success:.3f}")  # fmt: skip
         if args.teacher_only:

@@ -34,7 +34,10 @@ half of a trainer from rewards alone: a
 :class:`~amaze.evaluation.controllers.GuidedController` steers a continuous
 robot where a hybrid agent (evolved or trained by RL on rewards) goes, and the
 network learns that agent's decisions with continuous control, knowing no
-maze's solution. ``benchmarks/bench_oracle_imitation.py`` runs it
+maze's solution (``track=True`` keeps that agent on its own track and brings
+a straying robot back to it, so that the labels on a student's mistakes lead
+back to the agent's way rather than turn a memoryless agent round).
+``benchmarks/bench_oracle_imitation.py`` runs it
 (``--guide AGENT``) and scores the network on the suites. The teacher of a continuous
 robot steers without braking by default (``damping = 0``: the image shows no
 velocity, and this law solves the suite, see :class:`OracleController`).

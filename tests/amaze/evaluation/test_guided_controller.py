@@ -175,3 +175,89 @@ def test_guided_controller_refuses_bad_robots_guides_and_answers() -> None:
         guided.bind(engine)
         with pytest.raises(AmazeError, match=message):
             guided(observations)
+
+
+class _Pushed:
+    """``controller``'s actions, replaced by a full push in a turning direction for
+    ``length`` steps every ``every`` steps (deterministic)."""
+
+    def __init__(self, controller: GuidedController, every: int, length: int) -> None:
+        self.controller, self.every, self.length = controller, every, length
+        self.step = 0
+
+    def __call__(self, observations: np.ndarray) -> np.ndarray:
+        actions = np.asarray(self.controller(observations), dtype=np.float64)
+        phase, kick = self.step % self.every, self.step // self.every
+        self.step += 1
+        if phase < self.length:
+            actions[:] = OFFSETS[kick % 4]
+        return actions
+
+
+def _track(maze: Maze, policy: _Pushed, steps: int) -> tuple[list, list, bool]:
+    """The cells the robot enters and the guide's track cells (the controller's, after
+    each step) until the episode ends, and whether it reached the goal."""
+    engine = BatchEngine([maze], "CC7", 1, auto_reset=False)
+    policy.controller.bind(engine)
+    observations = engine.observe()[:, None]
+    cells, track = [tuple(engine.cells[0])], [tuple(engine.cells[0])]
+    for _ in range(steps):
+        result = engine.step(policy(observations))
+        if result.done[0]:  # the goal cell is not counted, as in _cells_visited
+            return cells, track, bool(result.terminated[0])
+        observations = result.observations[:, None]
+        if tuple(engine.cells[0]) != cells[-1]:
+            cells.append(tuple(engine.cells[0]))
+        if policy.controller.track and tuple(policy.controller.track_cells[0]) != track[-1]:
+            track.append(tuple(policy.controller.track_cells[0]))
+    return cells, track, False
+
+
+@pytest.mark.parametrize("text", [MAZES[1], MAZES[3]])
+def test_on_its_track_the_guide_walks_the_hybrid_agents_cells_and_brings_strays_back(
+    text: str,
+) -> None:
+    maze = Maze.from_string(text)
+    hybrid_cells, _, _ = _cells_visited(BatchEngine([maze], "H7", 1, auto_reset=False),
+                                        RightHand(7), 10_000)  # fmt: skip
+    # Unpushed, the track changes nothing: the robot enters the hybrid agent's cells.
+    calm = _Pushed(GuidedController("CC7", RightHand(7), track=True), every=10**9, length=0)
+    cells, track, success = _track(maze, calm, 100_000)
+    assert success and cells == hybrid_cells and track == hybrid_cells
+    # Pushed off its way, the robot strays into cells the agent never entered in that
+    # order; on its track the guide still walks the agent's cells, and reaches the goal.
+    tracked = _Pushed(GuidedController("CC7", RightHand(7), track=True), every=80, length=20)
+    cells, track, success = _track(maze, tracked, 100_000)
+    assert cells != hybrid_cells, "the pushes must make the robot stray"
+    assert track == hybrid_cells
+    assert success
+    # Asked again wherever it strays, the memoryless guide walks other cells than the
+    # agent's: sent back the way it came by the origin marker of the cell it left.
+    untracked = _Pushed(GuidedController("CC7", RightHand(7)), every=80, length=20)
+    cells, _, _ = _track(maze, untracked, 100_000)
+    assert cells[: len(hybrid_cells)] != hybrid_cells[: len(cells)]
+
+
+def test_the_track_starts_again_with_each_episode() -> None:
+    maze = Maze.from_string(MAZES[1])
+    controller = GuidedController("CC7", RightHand(7), track=True)
+    engine = BatchEngine([maze], "CC7", 1)  # auto-reset: episodes follow one another
+    controller.bind(engine)
+    observations = engine.observe()[:, None]
+    episodes: list[list[tuple[int, int]]] = [[tuple(engine.cells[0])]]
+    while len(episodes) < 3:
+        result = engine.step(controller(observations))
+        observations = result.observations[:, None]
+        if result.done[0]:
+            assert result.terminated[0]
+            episodes.append([tuple(engine.cells[0])])
+        elif tuple(engine.cells[0]) != episodes[-1][-1]:
+            episodes[-1].append(tuple(engine.cells[0]))
+    assert episodes[0] == episodes[1] and episodes[0][-1] != maze.start
+
+
+def test_track_is_refused_unless_a_boolean() -> None:
+    with pytest.raises(AmazeError, match="track must be True or False"):
+        GuidedController("CC7", RightHand(7), track=1)
+    with pytest.raises(AmazeError, match="bind"):
+        _ = GuidedController("CC7", RightHand(7), track=True).track_cells

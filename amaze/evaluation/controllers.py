@@ -252,12 +252,11 @@ class GuidedController:
     walls, instead of the guide being asked again from the cell it strayed
     into. Without it, a stray turns the guide round: the robot re-enters the
     cell it came from, whose origin marker now points the other way, and a
-    memoryless guide goes back the way it came (measured: a 20-step random
-    push started with probability 0.02 per step cuts a guide's success on
-    family mazes from 0.95 to about 0.2; on its track it keeps 0.97, the
-    oracle 1.00; docs/robots.md). The way back uses the maze's layout, never
+    memoryless guide goes back the way it came (DAgger taught by guides on
+    their track: docs/robots.md). The way back uses the maze's layout, never
     its goal: the guide alone decides where to go. The track starts again in
-    each robot's start cell (its ``timesteps`` back at 0).
+    each robot's start cell (its ``timesteps`` back at 0). The guide is still
+    asked once per step, at the track's cells.
     """
 
     def __init__(
@@ -303,6 +302,8 @@ class GuidedController:
         #: The guide's own cell and arrival side per robot (``track=True``).
         self._track_cells = engine.cells
         self._track_sides = engine.arrival_sides
+        #: The guide's last choice at its own cell per robot, -1 before the first.
+        self._track_directions = np.full(engine.n_agents, -1, dtype=np.int64)
         #: The way to a cell from every other, per (maze index, cell): see :meth:`_way_back`.
         self._ways: dict[tuple[int, int, int], np.ndarray] = {}
 
@@ -355,17 +356,18 @@ class GuidedController:
 
     def _tracked_directions(self, engine: BatchEngine, cells: np.ndarray) -> np.ndarray:
         """int64 (n,): the guide's direction for robots on its track, the way back to
-        it for the others; moves the track on where a robot reached the chosen cell."""
+        it for the others. The track moves on where a robot reached the cell the guide
+        chose at the last step, so the guide is asked once per step."""
+        last = self._track_directions
+        chosen = self._track_cells + OFFSETS_ARRAY[np.maximum(last, 0)]
+        moved = (last >= 0) & np.all(cells == chosen, axis=1)
+        self._track_cells[moved] = chosen[moved]
+        self._track_sides[moved] = (last[moved] + 2) % N_ACTIONS
         fresh = engine.timesteps == 0
         self._track_cells[fresh] = cells[fresh]
         self._track_sides[fresh] = engine.arrival_sides[fresh]
         directions = self._ask(self._track_cells, self._track_sides)
-        chosen = self._track_cells + OFFSETS_ARRAY[directions]
-        moved = np.all(cells == chosen, axis=1)
-        if moved.any():
-            self._track_cells[moved] = chosen[moved]
-            self._track_sides[moved] = (directions[moved] + 2) % N_ACTIONS
-            directions = self._ask(self._track_cells, self._track_sides)
+        self._track_directions = directions.copy()
         maze = engine.assignment
         for k in np.flatnonzero(np.any(cells != self._track_cells, axis=1)):
             way = self._way_back(engine, int(maze[k]), self._track_cells[k])

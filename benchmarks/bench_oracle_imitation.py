@@ -2,8 +2,9 @@
 
     python benchmarks/bench_oracle_imitation.py [--robot CC15] [--hidden 16 [16 ...]] [--pool 5]
         [--pooling mean] [--filters F --stride S] [--iterations 10] [--mazes 64] [--seed 0]
-        [--learning-rate-decay 1] [--keep last|best] [--guide AGENT [--track] [--teacher-only]]
-        [--out FILE.npz] [--csv FILE]
+        [--learning-rate-decay 1] [--keep last|best|average [--average-from I]]
+        [--guide AGENT [--track] [--teacher-only]]
+        [--out FILE.npz] [--networks DIR] [--csv FILE]
 
 :func:`evolution.imitation.imitate` teaches a network of evolution's kind (the
 pooled image, the weights shared by the four directions, the
@@ -14,7 +15,11 @@ the network's success and path progress on 64 validation mazes of the family
 and on 32 unseen ones (one episode each). It hands over the last iteration's
 network (``--keep last``, the default) or the one with the highest validation
 success, then path progress (``--keep best``; the unseen mazes and the suites
-play no part in the choice), and prints that network's success, path progress
+play no part in the choice), or the mean of the parameters of the iterations
+from ``--average-from`` (default: half the iterations) to the last
+(``--keep average``, stochastic weight averaging; the running mean's
+validation and unseen-family success are printed after each of those
+iterations), and prints that network's success, path progress
 and mean R̄ on the paper's suite and on the standard suite (72 episodes each;
 the standard suite is what runs and ``amaze evaluate AGENT suite`` report).
 ``--learning-rate-decay D`` multiplies the learning rate by ``D`` per
@@ -47,7 +52,10 @@ strays from the guide's cell is steered back to it by the maze's open walls
 instead of the guide being asked again where it strayed, which turns a
 memoryless guide round (see docs/robots.md). ``--csv FILE``
 writes the run's figures as one row (the network, the teacher, the kept
-iteration's, the suites').
+iteration's, the suites'). ``--networks DIR`` writes every iteration's
+network as an agent file, ``DIR/iteration-NN.npz`` (the iterations that the
+rule did not hand over, to score or compare afterwards: ``amaze evaluate
+DIR/iteration-07.npz suite``).
 """
 
 from __future__ import annotations
@@ -138,7 +146,12 @@ def main(argv: list[str] | None = None) -> int:
     )  # fmt: skip
     parser.add_argument(
         "--keep", choices=KEEP, default="last",
-        help="hand over the last iteration's network or the best on validation mazes",
+        help="hand over the last iteration's network, the best on validation mazes, or the"
+        " mean of the late iterations' parameters",
+    )  # fmt: skip
+    parser.add_argument(
+        "--average-from", type=int, metavar="I",
+        help="with --keep average: the first iteration averaged (default: iterations // 2)",
     )  # fmt: skip
     parser.add_argument(
         "--guide", type=Path, metavar="AGENT",
@@ -153,15 +166,22 @@ def main(argv: list[str] | None = None) -> int:
         help="with --guide: keep the guide on its own track, bring strays back to it",
     )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the taught network as an agent file")
+    parser.add_argument(
+        "--networks", type=Path, metavar="DIR",
+        help="write every iteration's network as an agent file DIR/iteration-NN.npz",
+    )  # fmt: skip
     parser.add_argument("--csv", type=Path, metavar="FILE", help="write the figures to FILE")
     args = parser.parse_args(argv)
     for option, path in (("--out", args.out), ("--csv", args.csv)):
         if path is not None and not path.parent.is_dir():
             print(f"error: {option} {path}: folder {path.parent} does not exist", file=sys.stderr)
             return 2
-    if args.teacher_only and (args.guide is None or args.out or args.csv):
+    if args.networks is not None and not args.networks.is_dir():
+        print(f"error: --networks {args.networks}: not a folder", file=sys.stderr)
+        return 2
+    if args.teacher_only and (args.guide is None or args.out or args.csv or args.networks):
         print("error: --teacher-only checks a --guide's teacher and teaches nothing:"
-              " give --guide, and no --out or --csv", file=sys.stderr)  # fmt: skip
+              " give --guide, and no --out, --networks or --csv", file=sys.stderr)  # fmt: skip
         return 2
     if args.track and args.guide is None:
         print("error: --track keeps a --guide on its track: give --guide", file=sys.stderr)
@@ -178,6 +198,7 @@ def main(argv: list[str] | None = None) -> int:
         config = ImitationConfig(
             iterations=args.iterations, seed=args.seed,
             learning_rate_decay=args.learning_rate_decay, keep=args.keep,
+            average_from=args.average_from,
         )  # fmt: skip
         mazes = validation_mazes(PAPER_TRAINING_MAZE, args.mazes, 10_000 + args.seed)
         teacher = None if args.guide is None else guided_teacher(spec, args.guide, args.track)
@@ -208,8 +229,8 @@ def main(argv: list[str] | None = None) -> int:
               f" validation mazes {teacher_validation:.3f},"
               f" on the standard suite {success:.3f}")  # fmt: skip
         if args.teacher_only:
-            print("--teacher-only: stopped before teaching; --iterations, --keep and"
-                  " --learning-rate-decay were not used")  # fmt: skip
+            print("--teacher-only: stopped before teaching; --iterations, --keep,"
+                  " --average-from and --learning-rate-decay were not used")  # fmt: skip
             return 0
     start = time.perf_counter()
     row: dict[str, object] = {
@@ -217,36 +238,55 @@ def main(argv: list[str] | None = None) -> int:
         "pooling": spec.pooling, "filters": spec.filters, "stride": spec.stride,
         "parameters": spec.n_params, "seed": args.seed, "mazes": len(mazes),
         "learning_rate_decay": args.learning_rate_decay, "keep": args.keep,
+        "average_from": config.first_averaged if args.keep == "average" else "",
         "iterations": args.iterations, "teacher": teacher_name,
     }  # fmt: skip
     if teacher is not None:
         row.update(teacher_validation_success=teacher_validation, teacher_standard_success=success)
-    family_scores: list[tuple[float, float]] = []
     family_judge = judge(spec, family)
+    averaged: list[np.ndarray] = []  # --keep average: the parameters averaged so far
+
+    algorithm = "oracle imitation (DAgger)" if teacher is None else "guided imitation (DAgger)"
 
     def report(record: dict[str, float], params: np.ndarray) -> None:
         success, progress, _ = score(spec, params, family_judge)
-        family_scores.append((success, progress))
-        print(f"iteration {record['iteration']:2.0f}  beta {record['beta']:.3f}"
-              f"  samples {record['samples']:>9.0f}  loss {record['loss']:.4f}"
-              f"  validation success {record['validation_success']:.3f}"
-              f"  progress {record['validation_progress']:.3f}"
-              f"  family success {success:.3f}  progress {progress:.3f}"
-              f"  ({time.perf_counter() - start:.0f} s)", flush=True)  # fmt: skip
+        if args.networks is not None:
+            save_network_agent(
+                args.networks / f"iteration-{record['iteration']:02.0f}.npz", spec, params,
+                algorithm=algorithm, teacher=teacher_name, seed=args.seed, mazes=mazes,
+                iteration=int(record["iteration"]),
+            )  # fmt: skip
+        line = (f"iteration {record['iteration']:2.0f}  beta {record['beta']:.3f}"
+                f"  samples {record['samples']:>9.0f}  loss {record['loss']:.4f}"
+                f"  validation success {record['validation_success']:.3f}"
+                f"  progress {record['validation_progress']:.3f}"
+                f"  family success {success:.3f}  progress {progress:.3f}")  # fmt: skip
+        if "average_validation_success" in record:
+            averaged.append(params)
+            mean_success, _, _ = score(spec, np.mean(averaged, axis=0), family_judge)
+            line += (f"  | mean of {len(averaged)}: validation"
+                     f" {record['average_validation_success']:.3f}"
+                     f"  family {mean_success:.3f}")  # fmt: skip
+        print(f"{line}  ({time.perf_counter() - start:.0f} s)", flush=True)
 
     result = imitate(
         spec, mazes, config, validation=validation, teacher=teacher, on_iteration=report
     )
     kept = result.history[result.kept_iteration]
+    mean = "average_" if args.keep == "average" else ""
+    params = result.params
+    family_success, family_progress, _ = score(spec, params, family_judge)
     row.update(
         kept_iteration=result.kept_iteration, samples=int(kept["samples"]), loss=kept["loss"],
-        validation_success=kept["validation_success"],
-        validation_progress=kept["validation_progress"],
-        family_success=family_scores[result.kept_iteration][0],
-        family_progress=family_scores[result.kept_iteration][1],
+        validation_success=kept[f"{mean}validation_success"],
+        validation_progress=kept[f"{mean}validation_progress"],
+        family_success=family_success, family_progress=family_progress,
     )  # fmt: skip
-    params = result.params
-    print(f"handed over: the network after iteration {result.kept_iteration} ({args.keep})")
+    if args.keep == "average":
+        print(f"handed over: the mean of the networks after iterations {result.averaged_from}"
+              f" to {result.kept_iteration} (average)")  # fmt: skip
+    else:
+        print(f"handed over: the network after iteration {result.kept_iteration} ({args.keep})")
     for name, suite, prefix in (
         ("paper suite", paper_suite(), "suite"), ("standard suite", standard_suite(), "standard"),
     ):  # fmt: skip
@@ -263,7 +303,6 @@ def main(argv: list[str] | None = None) -> int:
         write_rows(args.csv, [row])
         print(f"figures written to {args.csv}")
     if args.out is not None:
-        algorithm = "oracle imitation (DAgger)" if teacher is None else "guided imitation (DAgger)"
         path = save_network_agent(
             args.out, spec, params, algorithm=algorithm, teacher=teacher_name,
             seed=args.seed, mazes=mazes,

@@ -20,7 +20,13 @@ settle instead of moving as far as the first). Given validation mazes, each
 iteration's network is scored on them (success rate and path progress, one
 episode each), and ``keep = "best"`` hands over the network with the highest
 success, then path progress, instead of the last: late iterations can lose
-what earlier ones taught (measured on CC7, docs/robots.md).
+what earlier ones taught (measured on CC7, docs/robots.md). ``keep =
+"average"`` hands over the mean of the parameters of the iterations from
+``average_from`` on (by default the second half), as stochastic weight
+averaging does (Izmailov et al., 2018): at a constant learning rate the late
+iterations scatter round a region that fits the aggregated data, and their
+mean sits nearer its middle than any one of them. With validation mazes the
+running mean is scored after each of those iterations too.
 The parameters come back in the spec's own layout, so the taught network is
 an ordinary agent (:func:`evolution.agent_file.save_network_agent`) scored
 by the usual evaluators.
@@ -76,8 +82,9 @@ __all__ = [
 #: The continuous teacher's gain and damping (see the module docstring).
 TEACHER_GAIN = 2.0
 TEACHER_DAMPING = 0.0
-#: Which network :func:`imitate` hands over: the last iteration's or the best on validation.
-KEEP = ("last", "best")
+#: Which network :func:`imitate` hands over: the last iteration's, the best on validation,
+#: or the mean of the late iterations' parameters.
+KEEP = ("last", "best", "average")
 #: Bounds of the config's counts: ``max_samples`` keeps the samples held in memory
 #: under about 9 GB for a 15 x 15 image read pixel by pixel (225 float32 inputs; a
 #: convolutional network keeps the uint8 images, a quarter of that).
@@ -95,8 +102,10 @@ class ImitationConfig:
     iteration (their episodes go on across iterations); the network then takes
     ``updates`` Adam steps of ``batch`` samples at ``learning_rate``, times
     ``learning_rate_decay`` per iteration (1: the same rate throughout).
-    ``keep``: the network handed over, the ``"last"`` iteration's or the
-    ``"best"`` on the validation mazes (which :func:`imitate` then needs).
+    ``keep``: the network handed over, the ``"last"`` iteration's, the
+    ``"best"`` on the validation mazes (which :func:`imitate` then needs), or
+    the ``"average"`` of the parameters of iterations ``average_from`` to the
+    last (``None``: ``iterations // 2``; given only with ``"average"``).
     """
 
     iterations: int = 10
@@ -109,6 +118,7 @@ class ImitationConfig:
     max_samples: int = 3_000_000
     seed: int = 0
     keep: str = "last"
+    average_from: int | None = None
 
     def __post_init__(self) -> None:
         for name in ("iterations", "agents", "steps", "updates", "batch", "max_samples"):
@@ -127,16 +137,33 @@ class ImitationConfig:
         )  # fmt: skip
         if self.keep not in KEEP:
             raise EvolutionConfigError(f"keep {self.keep!r} is not one of {', '.join(KEEP)}")
+        if self.average_from is not None:
+            if self.keep != "average":
+                raise EvolutionConfigError(
+                    f'average_from {self.average_from!r} chooses what keep "average" averages;'
+                    f" keep is {self.keep!r}"
+                )
+            check_integer(
+                "average_from", self.average_from, minimum=0, maximum=self.iterations - 1,
+                error=EvolutionConfigError,
+            )  # fmt: skip
+
+    @property
+    def first_averaged(self) -> int:
+        """The first iteration whose parameters ``keep = "average"`` averages."""
+        return self.iterations // 2 if self.average_from is None else self.average_from
 
 
 @dataclass
 class ImitationResult:
     """The network handed over (``(spec.n_params,)``, float64), one record per iteration,
-    and the iteration whose network it is (``config.keep``)."""
+    and the iteration whose network it is (``config.keep``; with ``"average"`` the last,
+    ``averaged_from`` the first averaged, -1 otherwise)."""
 
     params: np.ndarray
     history: list[dict[str, float]] = field(default_factory=list)
     kept_iteration: int = -1
+    averaged_from: int = -1
 
 
 def network_inputs(spec: NetworkSpec, observations: np.ndarray) -> np.ndarray:
@@ -260,7 +287,10 @@ def imitate(
     ``on_iteration(record, params)`` hears of each iteration (``iteration``,
     ``beta``, ``samples``, ``loss``: the last batch's, ``learning_rate``, and
     with ``validation`` mazes ``validation_success`` and
-    ``validation_progress``) with that iteration's parameters. The same spec,
+    ``validation_progress``; with ``keep = "average"``, from the first
+    averaged iteration on, ``average_validation_success`` and
+    ``average_validation_progress``: the running mean's) with that iteration's
+    parameters. The same spec,
     mazes and config give the same parameters on one machine (torch's CPU
     kernels may round differently elsewhere).
     """
@@ -278,6 +308,7 @@ def imitate(
     if validation:
         judge = PopulationEvaluator(list(validation), spec.robot, fitness="path_progress")
     best_key = (-1.0, -1.0)
+    total = np.zeros(spec.n_params)  # keep "average": the sum of the averaged parameters
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     engine = BatchEngine(list(mazes), spec.robot, config.agents)
@@ -337,12 +368,29 @@ def imitate(
         }  # fmt: skip
         key = best_key
         if judge is not None:
-            scores = judge.evaluate(spec.population(params[None, :]))
-            key = (float(scores.success_rate[0]), float(scores.fitness[0]))
+            key = _validate(spec, judge, params)
             record.update(validation_success=key[0], validation_progress=key[1])
-        if config.keep == "last" or key > best_key:
+        if config.keep == "last" or (config.keep == "best" and key > best_key):
             best_key, result.params, result.kept_iteration = key, params, iteration
+        elif config.keep == "average" and iteration >= config.first_averaged:
+            total += params
+            mean = total / (iteration - config.first_averaged + 1)
+            result.params, result.kept_iteration = mean, iteration
+            result.averaged_from = config.first_averaged
+            if judge is not None:
+                success, progress = _validate(spec, judge, mean)
+                record.update(
+                    average_validation_success=success, average_validation_progress=progress
+                )
         result.history.append(record)
         if on_iteration is not None:
             on_iteration(record, params)
     return result
+
+
+def _validate(
+    spec: NetworkSpec, judge: PopulationEvaluator, params: np.ndarray
+) -> tuple[float, float]:
+    """Success rate and path progress of the network ``params`` on ``judge``'s mazes."""
+    scores = judge.evaluate(spec.population(params[None, :]))
+    return float(scores.success_rate[0]), float(scores.fitness[0])

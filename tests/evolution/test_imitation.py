@@ -176,3 +176,37 @@ def test_keep_best_needs_validation_mazes_and_keep_is_checked() -> None:
         imitate(spec, ["M1_6x6_U"], ImitationConfig(iterations=1, keep="best"))
     with pytest.raises(EvolutionConfigError, match="keep 'first'"):
         ImitationConfig(keep="first")
+
+
+def test_keep_average_hands_over_the_mean_of_the_late_iterations() -> None:
+    """``keep="average"`` hands over the mean of the parameters of iterations ``average_from`` on
+    (by default the second half), and scores the running mean on the validation mazes."""
+    spec = NetworkSpec(robot="DD", hidden=(), symmetry="rotations")
+    config = ImitationConfig(iterations=4, agents=16, steps=20, updates=30, batch=64, seed=5)
+    seen: list[np.ndarray] = []
+    average = imitate(
+        spec, ["M1_6x6_U"], dataclasses.replace(config, keep="average", average_from=1),
+        validation=["M11_8x8_U"], on_iteration=lambda record, params: seen.append(params),
+    )  # fmt: skip
+    assert (average.kept_iteration, average.averaged_from) == (3, 1)
+    np.testing.assert_allclose(average.params, np.mean(seen[1:], axis=0), rtol=1e-12)
+    assert not np.allclose(average.params, seen[-1])
+    assert ["average_validation_success" in r for r in average.history] == [False, *[True] * 3]
+    evaluator = PopulationEvaluator(["M11_8x8_U"], "DD", fitness="path_progress")
+    scores = evaluator.evaluate(spec.population(average.params[None, :]))
+    assert average.history[-1]["average_validation_progress"] == scores.fitness[0]
+    halves = imitate(spec, ["M1_6x6_U"], dataclasses.replace(config, keep="average"))
+    assert halves.averaged_from == 2  # iterations // 2 by default
+    np.testing.assert_allclose(halves.params, np.mean(seen[2:], axis=0), rtol=1e-12)
+    last = imitate(spec, ["M1_6x6_U"], config)
+    assert last.averaged_from == -1
+    np.testing.assert_array_equal(last.params, seen[-1])  # same seed: the same iterations
+
+
+def test_average_from_is_checked() -> None:
+    with pytest.raises(EvolutionConfigError, match='average_from 2 chooses what keep "average"'):
+        ImitationConfig(iterations=4, keep="best", average_from=2)
+    for first in (4, -1, 1.5):
+        with pytest.raises(EvolutionConfigError, match="average_from"):
+            ImitationConfig(iterations=4, keep="average", average_from=first)
+    assert ImitationConfig(iterations=5, keep="average").first_averaged == 2

@@ -273,13 +273,13 @@ def main(argv: list[str] | None = None) -> int:
         spec, mazes, config, validation=validation, teacher=teacher, on_iteration=report
     )
     kept = result.history[result.kept_iteration]
-    mean = "average_" if args.keep == "average" else ""
+    key = "average_" if args.keep == "average" else ""  # the running mean's record keys
     params = result.params
     family_success, family_progress, _ = score(spec, params, family_judge)
     row.update(
         kept_iteration=result.kept_iteration, samples=int(kept["samples"]), loss=kept["loss"],
-        validation_success=kept[f"{mean}validation_success"],
-        validation_progress=kept[f"{mean}validation_progress"],
+        validation_success=kept[f"{key}validation_success"],
+        validation_progress=kept[f"{key}validation_progress"],
         family_success=family_success, family_progress=family_progress,
     )  # fmt: skip
     if args.keep == "average":
